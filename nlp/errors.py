@@ -1,0 +1,39 @@
+"""User-facing input errors.
+
+A user mistake (a bad case file or data file) is reported as one `InputError`
+that names the file, the key and what was expected. The CLI prints the message
+and exits with status 2, without a traceback. Programming errors stay ordinary
+exceptions.
+"""
+
+__all__ = ["InputError"]
+
+
+class InputError(ValueError):
+    """Bad input in a case or data file.
+
+    Parameters
+    ----------
+    file : str
+        The file the bad value came from (or ``"<arguments>"`` for the CLI).
+    key : str
+        The key, column or channel that is wrong, as a dotted path
+        (``"model.masses[2]"``).
+    expected : str
+        What a valid value looks like, in words.
+    got : object, optional
+        The offending value, shown shortened.
+    """
+
+    def __init__(self, file, key, expected, got=None):
+        self.file = str(file)
+        self.key = str(key)
+        self.expected = expected
+        self.got = got
+        msg = f"{self.file}: '{self.key}': expected {expected}"
+        if got is not None:
+            text = repr(got)
+            if len(text) > 80:
+                text = text[:77] + "..."
+            msg += f", got {text}"
+        super().__init__(msg)
