@@ -1,0 +1,23 @@
+"""frf-nlp: FRF-based model updating with general viscous damping.
+
+The method follows "Model Updating with Experimental Frequency Response
+Function Considering General Damping" (Eqn 25): stiffness and mass as relative
+changes of nominal matrices, damping as a general SPD matrix C = L L^T, the FRF
+of the state-space system at each frequency, solved as a CasADi NLP.
+
+Modules (one concept each)
+--------------------------
+model, parameters   nominal matrices, influence matrices, bounds/fix/tie
+damping             general (Cholesky), Rayleigh, modal damping
+frf, frf_symbolic   numpy reference FRFs; the CasADi FRF used in the NLP
+problem, codegen    the NLP built once; compiled per-frequency pieces
+search              scatter search over start points
+identify            identifiability (Jacobian SVD, scale null space), errors
+freqsel, estimate   frequency-point selection; FRF estimation from records
+metrics, simulate   FDAC/FRAC/MAC; time-domain replay
+config, case        typed case file; assembling a case into a problem
+results, plots      result files and figures
+cli                 ``frf-nlp`` command
+"""
+
+__version__ = "0.1.0"

@@ -1,0 +1,262 @@
+"""Frequency-point selection around resonances (paper Section 4.2).
+
+Points far from resonance have a low signal-to-noise ratio and carry little
+damping information, so the updating uses the peak areas only: the
+half-power band of each resonance, widened by a factor ``k``.
+"""
+
+import numpy as np
+from scipy import signal
+
+from nlp.errors import InputError
+
+__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection"]
+
+_SRC = "<arguments>"
+
+
+def _check_fh(f, H):
+    """f as a strictly increasing 1-D array, H as (n_ch, n_f)."""
+    f = np.asarray(f, dtype=float)
+    H = np.atleast_2d(np.asarray(H))
+    if f.ndim != 1 or f.size < 3 or np.any(np.diff(f) <= 0):
+        raise InputError(_SRC, "f", "a strictly increasing 1-D frequency grid of >= 3 points [Hz]")
+    if H.ndim != 2 or H.shape[1] != f.size:
+        raise InputError(_SRC, "H", f"FRFs shaped (n_channels, {f.size})", got=f"shape {H.shape}")
+    return f, H
+
+
+def _window(f, fmin, fmax):
+    """Boolean mask of fmin <= f <= fmax (open ends when None)."""
+    lo = -np.inf if fmin is None else fmin
+    hi = np.inf if fmax is None else fmax
+    if lo >= hi:
+        raise InputError(_SRC, "fmin", f"below fmax ({fmax} Hz)", got=fmin)
+    return (f >= lo) & (f <= hi)
+
+
+def _summed_mag(H):
+    """Sum over channels of |H|: every mode shows up in it (paper's overlay)."""
+    return np.sum(np.abs(H), axis=0)
+
+
+def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None):
+    """Resonance peaks of the channel-summed FRF magnitude.
+
+    Parameters
+    ----------
+    f : array_like, shape (n_f,)
+        Frequencies [Hz], increasing.
+    H : array_like, shape (n_ch, n_f) or (n_f,)
+        FRFs.
+    n_peaks : int, optional
+        Keep only the ``n_peaks`` most prominent peaks.
+    prominence_db : float
+        Minimum peak prominence of ``20 log10(sum_ch |H|)`` [dB].
+    fmin, fmax : float, optional
+        Search only in ``[fmin, fmax]`` [Hz].
+
+    Returns
+    -------
+    ndarray of int
+        Indices into ``f`` of the peaks, sorted by frequency.
+    """
+    f, H = _check_fh(f, H)
+    if n_peaks is not None and (int(n_peaks) != n_peaks or n_peaks < 1):
+        raise InputError(_SRC, "n_peaks", "a positive integer", got=n_peaks)
+    sel = np.flatnonzero(_window(f, fmin, fmax))
+    with np.errstate(divide="ignore"):
+        db = 20.0 * np.log10(_summed_mag(H)[sel])
+    finite = np.isfinite(db)
+    if not finite.any():
+        return np.zeros(0, dtype=int)
+    db[~finite] = db[finite].min() - 100.0  # zero magnitude: a deep notch, not a gap
+    idx, props = signal.find_peaks(db, prominence=prominence_db)
+    if n_peaks is not None and idx.size > n_peaks:
+        idx = idx[np.argsort(props["prominences"])[::-1][: int(n_peaks)]]
+    return np.sort(sel[idx])
+
+
+def _crossing(f, mag, i_peak, level, step):
+    """Frequency where mag first falls below level walking from i_peak by step.
+
+    NaN if the grid ends first or a higher peak is met (band unresolved).
+    """
+    peak = mag[i_peak]
+    i = i_peak
+    while 0 <= i + step < mag.size:
+        j = i + step
+        if mag[j] > peak:
+            return np.nan
+        if mag[j] < level:
+            # linear interpolation between the last point above and the first below
+            return f[i] + (level - mag[i]) * (f[j] - f[i]) / (mag[j] - mag[i])
+        i = j
+    return np.nan
+
+
+def half_power_band(f, mag, i_peak):
+    """Half-power (-3 dB) band around a peak.
+
+    Parameters
+    ----------
+    f : array_like, shape (n_f,)
+        Frequencies [Hz].
+    mag : array_like, shape (n_f,)
+        FRF magnitude (linear, not dB).
+    i_peak : int
+        Index of the peak.
+
+    Returns
+    -------
+    f_lo, f_hi : float
+        Frequencies [Hz] where ``mag`` falls to ``mag[i_peak] / sqrt(2)``,
+        linearly interpolated between grid points; NaN on a side where it
+        does not fall that far before the grid ends or a higher peak. For a
+        light, well-separated mode ``zeta ~ (f_hi - f_lo) / (2 f_r)``.
+    """
+    f = np.asarray(f, dtype=float)
+    mag = np.asarray(mag, dtype=float)
+    if mag.shape != f.shape or f.ndim != 1:
+        raise InputError(_SRC, "mag", f"a 1-D magnitude array like f {f.shape}", got=mag.shape)
+    if int(i_peak) != i_peak or not 0 <= i_peak < f.size:
+        raise InputError(_SRC, "i_peak", f"an index in [0, {f.size - 1}]", got=i_peak)
+    level = mag[int(i_peak)] / np.sqrt(2.0)
+    return (_crossing(f, mag, int(i_peak), level, -1), _crossing(f, mag, int(i_peak), level, +1))
+
+
+def _peak_points(f, i_peak, band, k, min_points):
+    """Indices within k * bandwidth of the peak, plus the nearest min_points."""
+    f_r = f[i_peak]
+    f_lo, f_hi = band
+    # one unresolved side: assume a symmetric band
+    if np.isnan(f_lo) and not np.isnan(f_hi):
+        f_lo = 2 * f_r - f_hi
+    if np.isnan(f_hi) and not np.isnan(f_lo):
+        f_hi = 2 * f_r - f_lo
+    dist = np.abs(f - f_r)
+    near = np.argsort(dist, kind="stable")[:min_points]
+    if np.isnan(f_lo):
+        return near
+    return np.union1d(np.flatnonzero(dist <= k * (f_hi - f_lo)), near)
+
+
+def _band_points(f, bands):
+    """Indices of f inside any of the user's (f_lo, f_hi) bands [Hz]."""
+    keep = np.zeros(f.size, dtype=bool)
+    for i, band in enumerate(bands):
+        if len(band) != 2 or not band[0] < band[1]:
+            raise InputError(_SRC, f"bands[{i}]", "a pair (f_lo, f_hi) in Hz with f_lo < f_hi",
+                             got=band)
+        keep |= (f >= band[0]) & (f <= band[1])
+    return np.flatnonzero(keep)
+
+
+def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=None,
+                       n_peaks=None, min_points_per_peak=5, fmin=None, fmax=None,
+                       prominence_db=6.0):
+    """Indices of the frequency points used for updating.
+
+    For each resonance peak of ``sum_ch |H|`` (see `find_peaks`), keep the
+    points with ``|f - f_r| <= k (f_hi - f_lo)`` where ``(f_lo, f_hi)`` is the
+    half-power band, and always the ``min_points_per_peak`` points nearest
+    ``f_r``. ``bands`` replaces this automatic choice (``k``, ``n_peaks``,
+    ``fmin``, ``fmax`` are then ignored). Finally points whose coherence
+    (minimum over channels) is below ``min_coherence`` are dropped.
+
+    Parameters
+    ----------
+    f : array_like, shape (n_f,)
+        Frequencies [Hz].
+    H : array_like, shape (n_ch, n_f)
+        FRFs.
+    k : float
+        Half-width of the kept region in half-power bandwidths.
+    coherence : array_like, shape (n_ch, n_f) or (n_f,), optional
+    min_coherence : float, optional
+        Needs ``coherence``.
+    bands : list of (float, float), optional
+        Explicit frequency bands [Hz].
+    n_peaks, fmin, fmax, prominence_db :
+        Passed to `find_peaks`.
+    min_points_per_peak : int
+
+    Returns
+    -------
+    ndarray of int
+        Sorted unique indices into ``f``.
+    """
+    f, H = _check_fh(f, H)
+    if bands is not None:
+        idx = _band_points(f, bands)
+    else:
+        if not (np.isscalar(k) and k > 0):
+            raise InputError(_SRC, "k", "a positive number of half-power bandwidths", got=k)
+        if int(min_points_per_peak) != min_points_per_peak or min_points_per_peak < 1:
+            raise InputError(_SRC, "min_points_per_peak", "a positive integer",
+                             got=min_points_per_peak)
+        peaks = find_peaks(f, H, n_peaks=n_peaks, prominence_db=prominence_db,
+                           fmin=fmin, fmax=fmax)
+        if peaks.size == 0:
+            raise InputError(_SRC, "prominence_db", "a setting that finds at least one peak "
+                             "(lower it, widen fmin/fmax or give explicit bands)", got=prominence_db)
+        mag = _summed_mag(H)
+        inside = np.flatnonzero(_window(f, fmin, fmax))
+        parts = [_peak_points(f, ip, half_power_band(f, mag, ip), k, int(min_points_per_peak))
+                 for ip in peaks]
+        idx = np.intersect1d(np.concatenate(parts), inside)
+    if min_coherence is not None:
+        if coherence is None:
+            raise InputError(_SRC, "coherence", "coherence values when min_coherence is given")
+        coh = np.atleast_2d(np.asarray(coherence, dtype=float))
+        if coh.shape[1] != f.size:
+            raise InputError(_SRC, "coherence", f"shape (n_channels, {f.size})", got=coh.shape)
+        idx = idx[np.min(coh, axis=0)[idx] >= min_coherence]
+    if idx.size == 0:
+        raise InputError(_SRC, "bands" if bands is not None else "min_coherence",
+                         "settings that keep at least one frequency point")
+    return np.unique(idx).astype(int)
+
+
+def plot_selection(f, H, idx, path, channel_names=None):
+    """Write a PNG of the dB magnitudes with the selected points marked.
+
+    Parameters
+    ----------
+    f : array_like, shape (n_f,)
+        Frequencies [Hz].
+    H : array_like, shape (n_ch, n_f)
+    idx : array_like of int
+        Selected indices (from `select_frequencies`).
+    path : str or path-like
+        Output PNG file.
+    channel_names : list of str, optional
+
+    Returns
+    -------
+    path
+    """
+    # Figure + Agg canvas directly: no pyplot, so no global figure state.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    f, H = _check_fh(f, H)
+    idx = np.asarray(idx, dtype=int)
+    names = channel_names or [f"channel {i + 1}" for i in range(H.shape[0])]
+    if len(names) != H.shape[0]:
+        raise InputError(_SRC, "channel_names", f"{H.shape[0]} names", got=names)
+    fig = Figure(figsize=(8, 4.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    with np.errstate(divide="ignore"):
+        db = 20.0 * np.log10(np.abs(H))
+    for i, name in enumerate(names):
+        line, = ax.plot(f, db[i], lw=0.8, label=name)
+        ax.plot(f[idx], db[i, idx], "o", ms=3, color=line.get_color())
+    ax.set_xlabel("Frequency [Hz]")
+    ax.set_ylabel("|H| [dB]")
+    ax.set_title(f"Selected frequency points ({idx.size})")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.savefig(path, dpi=120)
+    return path

@@ -1,0 +1,141 @@
+"""Frequency response functions in numpy: the reference implementation.
+
+Conventions
+-----------
+Y(w) = H(w) X(w) with the e^{-jwt} forward Fourier transform, so a single
+degree of freedom has receptance 1 / (k - w^2 m + j w c).
+
+Excitation
+    ``"ground"``: ground acceleration a_g; the response q is displacement
+    relative to the ground and the equivalent load is F = -M 1 a_g (Eqn 16).
+    ``"force"``: a force [N] at one degree of freedom e (Eqn 15).
+Output (Eqns 18-19)
+    ``"receptance"`` H, ``"mobility"`` jwH, ``"accelerance"`` -w^2 H, and for
+    ground input ``"absolute_accelerance"`` -w^2 H + 1 (what an accelerometer
+    on a shake-table structure reads, relative response plus ground motion).
+
+Three independent evaluations agree to round-off: the modal sum over the
+complex modes of the state-space system (Eqns 5, 15, 17), a direct solve of
+(jwA + B) x = P (Eqns 2-4), and the dynamic stiffness (K - w^2 M + jwC).
+"""
+
+import numpy as np
+import scipy.linalg as sla
+
+__all__ = [
+    "OUTPUTS",
+    "EXCITATIONS",
+    "load_vector",
+    "output_factor",
+    "state_space_matrices",
+    "complex_modes",
+    "frf_modal",
+    "frf_state_space",
+    "frf_dynamic_stiffness",
+    "modal_parameters",
+]
+
+OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
+EXCITATIONS = ("ground", "force")
+_POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+
+
+def load_vector(M, excitation="ground", force_dof=None):
+    """Load vector b of Mq'' + Cq' + Kq = b u (u = a_g or the force)."""
+    n = M.shape[0]
+    if excitation == "ground":
+        return -np.asarray(M) @ np.ones(n)
+    if excitation == "force":
+        b = np.zeros(n)
+        b[force_dof] = 1.0
+        return b
+    raise ValueError(f"excitation must be one of {EXCITATIONS}, got {excitation!r}")
+
+
+def output_factor(omega, output):
+    """(jw)^p for receptance (p=0), mobility (1), accelerance (2) (Eqns 18-19)."""
+    if output not in _POWER:
+        raise ValueError(f"output must be one of {OUTPUTS}, got {output!r}")
+    return (1j * np.asarray(omega)) ** _POWER[output]
+
+
+def _apply_output(Hq, omega, output):
+    H = Hq * output_factor(omega, output)
+    if output == "absolute_accelerance":
+        H = H + 1.0
+    return H
+
+
+def state_space_matrices(M, C, K):
+    """A and B of Eqn 4: A = [[C, M], [M, 0]], B = [[K, 0], [0, -M]]."""
+    n = M.shape[0]
+    Z = np.zeros((n, n))
+    A = np.block([[C, M], [M, Z]])
+    B = np.block([[K, Z], [Z, -M]])
+    return A, B
+
+
+def complex_modes(M, C, K):
+    """Complex eigenvalues s_i and A-normalised eigenvectors psi_i (Eqns 5-6).
+
+    Returns s (2n,) and Psi (2n, 2n) with Psi^T A Psi = I and
+    Psi^T B Psi = -diag(s) (plain transpose, not conjugate).
+    """
+    A, B = state_space_matrices(M, C, K)
+    s, Psi = sla.eig(-B, A)
+    norm = np.sqrt(np.einsum("ji,jk,ki->i", Psi, A, Psi))
+    return s, Psi / norm
+
+
+def frf_modal(M, C, K, omega, excitation="ground", force_dof=None, output="receptance"):
+    """FRFs of every DOF by the modal sum (Eqns 15 and 17).
+
+    Returns (n, n_omega) complex; for ground input H_rg = sum_i
+    -phi_ri (phi_i^T M 1) / (jw - s_i), which for lumped masses is Eqn 17.
+    """
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    n = M.shape[0]
+    s, Psi = complex_modes(M, C, K)
+    Phi = Psi[:n]
+    b = load_vector(M, excitation, force_dof)
+    participation = Phi.T @ b  # phi_i^T b
+    Hq = (Phi * participation) @ (1.0 / (1j * omega[None, :] - s[:, None]))
+    return _apply_output(Hq, omega, output)
+
+
+def frf_state_space(M, C, K, omega, excitation="ground", force_dof=None, output="receptance"):
+    """FRFs by solving (jwA + B) x = P at each frequency (Eqns 2-4)."""
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    n = M.shape[0]
+    A, B = state_space_matrices(M, C, K)
+    P = np.concatenate([load_vector(M, excitation, force_dof), np.zeros(n)])
+    Hq = np.empty((n, omega.size), dtype=complex)
+    for k, w in enumerate(omega):
+        Hq[:, k] = np.linalg.solve(1j * w * A + B, P)[:n]
+    return _apply_output(Hq, omega, output)
+
+
+def frf_dynamic_stiffness(M, C, K, omega, excitation="ground", force_dof=None,
+                          output="receptance"):
+    """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b."""
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    b = load_vector(M, excitation, force_dof)
+    Z = K[None] - omega[:, None, None] ** 2 * M[None] + 1j * omega[:, None, None] * C[None]
+    Hq = np.linalg.solve(Z, np.broadcast_to(b, (omega.size, b.size))[..., None])[..., 0].T
+    return _apply_output(Hq, omega, output)
+
+
+def modal_parameters(M, C, K):
+    """Natural frequencies [Hz] and damping ratios from the complex eigenvalues.
+
+    For each complex pair s = -zeta w +- j w sqrt(1 - zeta^2): f = |s| / 2pi,
+    zeta = -Re(s) / |s|. Sorted by frequency; overdamped (real) roots are
+    dropped. Also returns the complex mode shapes phi (n, n_modes).
+    """
+    n = M.shape[0]
+    s, Psi = complex_modes(M, C, K)
+    keep = s.imag > 0
+    s, Phi = s[keep], Psi[:n, keep]
+    order = np.argsort(np.abs(s))
+    s, Phi = s[order], Phi[:, order]
+    return np.abs(s) / (2 * np.pi), -s.real / np.abs(s), Phi

@@ -1,0 +1,108 @@
+"""Structural model: nominal matrices and their influence matrices (Eqns 23-24).
+
+K = K0 + sum_r alpha_r K0_r,   M = M0 + sum_r beta_r M0_r
+
+alpha and beta are relative changes of physical parameters (a story stiffness,
+a floor mass): alpha_r = 0.1 means that parameter is 10 % above nominal. Each
+influence matrix K0_r (M0_r) is the nominal contribution of parameter r, so
+the updated physical value is nominal_r * (1 + alpha_r).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["StructuralModel", "shear_frame", "shear_stiffness"]
+
+
+@dataclass(frozen=True)
+class StructuralModel:
+    """Nominal matrices, influence matrices and the names of their parameters.
+
+    Attributes
+    ----------
+    M0, K0 : (n, n) ndarray
+        Nominal mass [kg] and stiffness [N/m] matrices.
+    M_infl, K_infl : tuple of (n, n) ndarray
+        Influence matrices M0_r and K0_r of Eqns 23-24.
+    beta_names, alpha_names : tuple of str
+        One name per influence matrix (e.g. ``m1``, ``k1``).
+    beta_nominal, alpha_nominal : (n_beta,), (n_alpha,) ndarray
+        Nominal physical value of each parameter (kg, N/m), for reporting
+        ``nominal * (1 + relative change)``; 1.0 where there is none.
+    dof_names : tuple of str
+        Name of each degree of freedom (``floor1``...).
+    """
+
+    M0: np.ndarray
+    K0: np.ndarray
+    M_infl: tuple
+    K_infl: tuple
+    beta_names: tuple
+    alpha_names: tuple
+    beta_nominal: np.ndarray
+    alpha_nominal: np.ndarray
+    dof_names: tuple = field(default=())
+
+    @property
+    def n(self):
+        """Number of degrees of freedom."""
+        return self.M0.shape[0]
+
+    def matrices(self, alpha, beta):
+        """Return (M, K) for relative changes alpha, beta (Eqns 23-24).
+
+        Works with numpy arrays and with CasADi symbols.
+        """
+        M = self.M0 + sum(b * Mr for b, Mr in zip(_items(beta), self.M_infl))
+        K = self.K0 + sum(a * Kr for a, Kr in zip(_items(alpha), self.K_infl))
+        return M, K
+
+
+def _items(v):
+    n = v.shape[0] if hasattr(v, "shape") else len(v)
+    return [v[i] for i in range(n)]
+
+
+def shear_stiffness(k):
+    """Stiffness matrix of a shear frame with story stiffnesses k [N/m].
+
+    Story 1 joins the ground and floor 1; story r joins floors r-1 and r.
+    """
+    k = np.asarray(k, dtype=float)
+    n = k.size
+    K = np.zeros((n, n))
+    for r in range(n):
+        K[r, r] += k[r]
+        if r > 0:
+            K[r - 1, r - 1] += k[r]
+            K[r - 1, r] -= k[r]
+            K[r, r - 1] -= k[r]
+    return K
+
+
+def shear_frame(masses, stiffnesses):
+    """Shear-frame model: one mass parameter per floor, one stiffness per story.
+
+    Parameters
+    ----------
+    masses : array_like, (n,)
+        Nominal floor masses [kg], floor 1 first.
+    stiffnesses : array_like, (n,)
+        Nominal story stiffnesses [N/m]; story 1 is between ground and floor 1.
+    """
+    m = np.asarray(masses, dtype=float)
+    k = np.asarray(stiffnesses, dtype=float)
+    n = m.size
+    eye = np.eye(n)
+    return StructuralModel(
+        M0=np.diag(m),
+        K0=shear_stiffness(k),
+        M_infl=tuple(np.diag(m[r] * eye[r]) for r in range(n)),
+        K_infl=tuple(shear_stiffness(k[r] * eye[r]) for r in range(n)),
+        beta_names=tuple(f"m{r + 1}" for r in range(n)),
+        alpha_names=tuple(f"k{r + 1}" for r in range(n)),
+        beta_nominal=m.copy(),
+        alpha_nominal=k.copy(),
+        dof_names=tuple(f"floor{r + 1}" for r in range(n)),
+    )

@@ -1,0 +1,296 @@
+"""The updating problem of Eqn 25 as a CasADi NLP, built once, solved many times.
+
+    minimise   f(z) = 1/2 sum_k sum_c r_kc(z)^2                     (25a)
+    subject to lbx <= z <= ubx                                        (25e)
+               1^T M(z) 1 = m_total        (only with a total-mass anchor)
+
+with theta = T z + c (:mod:`nlp.parameters`), M, K from Eqns 23-24, C from a
+damping model that is SPD for every theta (25f), and the FRF of Eqns 2-5 at
+each selected frequency. Residual forms (per channel c, frequency k, weight w):
+
+    log_magnitude   r = w (ln|H_a| - ln|H_x|)
+    magnitude       r = w (|H_a| - |H_x|) / rms_c|H_x|    (the paper's Eqn 25a)
+    complex         r = w [Re, Im] (H_a - H_x) / |H_x|
+
+How it is built (measured, see DEVELOPERS.md fact 3): the residuals of one
+frequency and their Jacobian are an SX function of (z, w, data), compiled to C
+once and mapped over the frequency grid. IPOPT and sqpmethod receive the
+gradient J^T r and the Gauss-Newton Hessian J^T J of the least-squares
+objective. Everything that changes between solves (start point, data, bounds)
+enters as numbers; nothing symbolic is rebuilt per start.
+"""
+
+from dataclasses import dataclass, field
+import time
+
+import casadi as ca
+import numpy as np
+
+from .codegen import compile_library
+from .frf_symbolic import frf_symbolic
+
+__all__ = ["RESIDUALS", "SOLVERS", "Channel", "Target", "SolverConfig", "LocalResult",
+           "UpdatingProblem"]
+
+RESIDUALS = ("log_magnitude", "magnitude", "complex")
+SOLVERS = ("ipopt", "sqpmethod")
+
+_DEFAULT_OPTIONS = {
+    "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-10,
+              "ipopt.acceptable_tol": 1e-8, "ipopt.max_iter": 500, "print_time": False},
+    "sqpmethod": {"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
+                                                     "print_info": False, "error_on_fail": False},
+                  "print_header": False, "print_iteration": False, "print_status": False,
+                  "max_iter": 200, "tol_du": 1e-10, "tol_pr": 1e-10, "min_step_size": 1e-14,
+                  "print_time": False, "error_on_fail": False},
+}
+
+
+@dataclass(frozen=True)
+class Channel:
+    """A measured response: its name, 0-based DOF and output quantity."""
+
+    name: str
+    dof: int
+    output: str = "receptance"
+
+
+@dataclass(frozen=True)
+class Target:
+    """Experimental FRFs at the frequencies used in the objective.
+
+    omega : (N,) rad/s; H : (n_ch, N) complex; weight : (n_ch, N), 0 where a
+    channel's point is not used; excitation ``"ground"`` or ``"force"`` with
+    ``force_dof`` (0-based).
+    """
+
+    omega: np.ndarray
+    H: np.ndarray
+    weight: np.ndarray
+    channels: tuple
+    excitation: str = "ground"
+    force_dof: int = None
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """Local NLP solver: CasADi plugin name and options passed through."""
+
+    name: str = "ipopt"
+    options: dict = field(default_factory=dict)
+    compile: bool = True
+
+    def nlpsol_options(self):
+        opts = {k: (dict(v) if isinstance(v, dict) else v)
+                for k, v in _DEFAULT_OPTIONS[self.name].items()}
+        for key, value in self.options.items():
+            if self.name == "ipopt" and not key.startswith("ipopt.") and key not in opts \
+                    and key not in ("print_time", "expand"):
+                key = "ipopt." + key
+            if isinstance(value, dict) and isinstance(opts.get(key), dict):
+                opts[key].update(value)
+            else:
+                opts[key] = value
+        return opts
+
+
+@dataclass(frozen=True)
+class LocalResult:
+    """One local solve: decision vector, objective and solver statistics."""
+
+    z: np.ndarray
+    f: float
+    success: bool
+    status: str
+    iterations: int
+    seconds: float
+    z0: np.ndarray = None
+
+
+class UpdatingProblem:
+    """Eqn 25 for one model, damping model, parameter set and data set.
+
+    Parameters
+    ----------
+    model : nlp.model.StructuralModel
+    damping : a damping model from :mod:`nlp.damping`
+    params : nlp.parameters.ParameterSet
+    target : Target
+    residual : {"log_magnitude", "magnitude", "complex"}
+    solver : SolverConfig
+    total_mass : float, optional
+        Anchor 1^T M 1 = total_mass [kg] (an equality constraint).
+    """
+
+    def __init__(self, model, damping, params, target, residual="log_magnitude",
+                 solver=SolverConfig(), total_mass=None):
+        if residual not in RESIDUALS:
+            raise ValueError(f"residual must be one of {RESIDUALS}, got {residual!r}")
+        if solver.name not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {solver.name!r}")
+        self.model, self.damping, self.params = model, damping, params
+        self.target, self.residual, self.solver_config = target, residual, solver
+        self.total_mass = total_mass
+        self._build_symbolic()
+        self._p = self._pack_data(target)
+        self._build_nlp()
+
+    # ------------------------------------------------------------------ build
+    def _model_matrices(self, z):
+        theta = ca.mtimes(ca.DM(self.params.T), z) + ca.DM(self.params.c)
+        sa, sb, sd = self.params.slices()
+        M, K = self.model.matrices(theta[sa], theta[sb])
+        M, K = ca.SX(M), ca.SX(K)
+        C = self.damping.matrix(theta[sd], M, K)
+        return M, K, ca.SX(C)
+
+    def _build_symbolic(self):
+        nz = self.params.n_z
+        n_ch = len(self.target.channels)
+        z = ca.SX.sym("z", nz)
+        w = ca.SX.sym("w")
+        yr, yi, s, wt = (ca.SX.sym(nm, n_ch) for nm in ("yr", "yi", "s", "wt"))
+        M, K, C = self._model_matrices(z)
+        self.matrices_fn = ca.Function("matrices", [z], [M, K, C], ["z"], ["M", "K", "C"])
+        if self.target.excitation == "ground":
+            b = -ca.mtimes(M, ca.DM.ones(M.shape[0]))
+        else:
+            b = ca.DM.zeros(M.shape[0])
+            b[self.target.force_dof] = 1
+        cache = {}
+        res = []
+        for c, ch in enumerate(self.target.channels):
+            if ch.output not in cache:
+                cache[ch.output] = frf_symbolic(M, C, K, w, b, ch.output)
+            hr, hi = cache[ch.output][0][ch.dof], cache[ch.output][1][ch.dof]
+            if self.residual == "log_magnitude":
+                res.append(wt[c] * 0.5 * (ca.log(hr**2 + hi**2) - ca.log(yr[c]**2 + yi[c]**2)))
+            elif self.residual == "magnitude":
+                res.append(wt[c] * (ca.sqrt(hr**2 + hi**2) - ca.sqrt(yr[c]**2 + yi[c]**2)) / s[c])
+            else:
+                res += [wt[c] * (hr - yr[c]) / s[c], wt[c] * (hi - yi[c]) / s[c]]
+        r = ca.vertcat(*res)
+        args = [z, w, yr, yi, s, wt]
+        names = ["z", "w", "yr", "yi", "s", "wt"]
+        res_fn = ca.Function("frf_res", args, [r], names, ["r"])
+        resjac_fn = ca.Function("frf_resjac", args, [r, ca.jacobian(r, z).T], names, ["r", "JT"])
+        self.n_res = r.shape[0]
+        self._res_fn, self._resjac_fn = res_fn, resjac_fn
+        self.compiled = False
+        if self.solver_config.compile:
+            lib = compile_library([res_fn, res_fn.jacobian(), resjac_fn], stem=f"frfnlp_n{M.shape[0]}")
+            if lib is not None:
+                self._res_fn = ca.external("frf_res", lib)
+                self._resjac_fn = ca.external("frf_resjac", lib)
+                self.compiled = True
+
+    def _pack_data(self, target):
+        H = np.asarray(target.H, dtype=complex)
+        wt = np.asarray(target.weight, dtype=float)
+        used = wt > 0
+        Hs = np.where(used, H, 1.0)  # unused points: harmless finite data
+        mag = np.abs(Hs)
+        if self.residual == "magnitude":
+            rms = np.array([np.sqrt(np.mean(mag[c, used[c]] ** 2)) if used[c].any() else 1.0
+                            for c in range(H.shape[0])])
+            s = np.repeat(rms[:, None], H.shape[1], axis=1)
+        elif self.residual == "complex":
+            s = mag
+        else:
+            s = np.ones_like(mag)
+        self.n_used = int(used.sum()) * (2 if self.residual == "complex" else 1)
+        return np.concatenate([np.asarray(target.omega, float).ravel(),
+                               *(a.ravel(order="F") for a in (Hs.real, Hs.imag, s, wt))])
+
+    def _unpack(self, p):
+        N = self.target.omega.size
+        n_ch = len(self.target.channels)
+        W = ca.reshape(p[:N], 1, N)
+        blocks = [ca.reshape(p[N + i * n_ch * N: N + (i + 1) * n_ch * N], n_ch, N) for i in range(4)]
+        return W, *blocks
+
+    def _build_nlp(self):
+        N = self.target.omega.size
+        nz = self.params.n_z
+        x = ca.MX.sym("x", nz)
+        p = ca.MX.sym("p", self._p.size)
+        data = self._unpack(p)
+        R = self._res_fn.map(N, "serial")(x, *data)
+        f = 0.5 * ca.sumsqr(R)
+        R2, JT = self._resjac_fn.map(N, "serial")(x, *data)
+        rv = ca.vec(R2)
+        grad = ca.mtimes(JT, rv)
+        gn = ca.mtimes(JT, JT.T)  # Gauss-Newton Hessian J^T J
+        lam_f = ca.MX.sym("lam_f")
+        M, _, _ = self.matrices_fn(x)
+        g = ca.sum1(ca.sum2(M)) - self.total_mass if self.total_mass is not None else ca.MX(0, 1)
+        lam_g = ca.MX.sym("lam_g", g.shape[0])
+        jac_g = ca.jacobian(g, x)
+        self.obj_fn = ca.Function("objective", [x, p], [f])
+        self.resjac_fn = ca.Function("residuals", [x, p], [rv, JT.T])
+        opts = self.solver_config.nlpsol_options()
+        if self.solver_config.name == "ipopt":
+            opts["grad_f"] = ca.Function("grad_f", [x, p], [0.5 * ca.sumsqr(rv), grad],
+                                         ["x", "p"], ["f", "grad"])
+            opts["hess_lag"] = ca.Function("hess_lag", [x, p, lam_f, lam_g],
+                                           [ca.triu(lam_f * gn)],
+                                           ["x", "p", "lam_f", "lam_g"], ["hess"])
+        else:
+            opts["jac_fg"] = ca.Function("jac_fg", [x, p], [0.5 * ca.sumsqr(rv), grad, g, jac_g],
+                                         ["x", "p"], ["f", "grad", "g", "jac_g"])
+            opts["hess_lag"] = ca.Function("hess_lag", [x, p, lam_f, lam_g], [lam_f * gn],
+                                           ["x", "p", "lam_f", "lam_g"], ["hess"])
+        nlp = {"x": x, "p": p, "f": f, "g": g}
+        self._solver = ca.nlpsol("updater", self.solver_config.name, nlp, opts)
+        self.ng = g.shape[0]
+        self._batch = {}
+
+    # ------------------------------------------------------------- numerics
+    @property
+    def z0(self):
+        return self.params.z0
+
+    @property
+    def bounds(self):
+        return self.params.z_bounds
+
+    def objective(self, z):
+        """f(z) = 1/2 ||r(z)||^2."""
+        return float(self.obj_fn(np.asarray(z, float), self._p))
+
+    def objective_batch(self, Z):
+        """f at each column of Z (n_z, n_points), evaluated in one compiled loop."""
+        Z = np.atleast_2d(np.asarray(Z, float))
+        n = Z.shape[1]
+        if n not in self._batch:
+            self._batch[n] = self.obj_fn.map(n, "serial")
+        return np.asarray(self._batch[n](Z, self._p)).ravel()
+
+    def residuals(self, z):
+        """Residual vector r and Jacobian J = dr/dz at z."""
+        r, J = self.resjac_fn(np.asarray(z, float), self._p)
+        return np.asarray(r).ravel(), np.asarray(J)
+
+    def matrices(self, z):
+        """Numeric M, K, C at z."""
+        M, K, C = self.matrices_fn(np.asarray(z, float))
+        return np.asarray(M), np.asarray(K), np.asarray(C)
+
+    def theta(self, z):
+        return self.params.theta(np.asarray(z, float))
+
+    def solve(self, z0=None):
+        """One local solve from z0 (default: the case's initial point)."""
+        z0 = self.z0 if z0 is None else np.asarray(z0, float)
+        lo, hi = self.bounds
+        z0c = np.clip(z0, lo, hi)
+        g0 = np.zeros(self.ng)
+        t0 = time.perf_counter()
+        sol = self._solver(x0=z0c, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
+        seconds = time.perf_counter() - t0
+        st = self._solver.stats()
+        status = str(st.get("return_status", "unknown"))
+        iters = int(st.get("iter_count", -1))
+        return LocalResult(z=np.asarray(sol["x"]).ravel(), f=float(sol["f"]),
+                           success=bool(st.get("success", False)), status=status,
+                           iterations=iters, seconds=seconds, z0=z0c)
