@@ -40,8 +40,8 @@ def _summed_mag(H):
     return np.sum(np.abs(H), axis=0)
 
 
-def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None):
-    """Resonance peaks of the channel-summed FRF magnitude.
+def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_level=None):
+    """Resonance peaks of the FRF magnitudes (each channel and their sum).
 
     Parameters
     ----------
@@ -55,6 +55,10 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None):
         Minimum peak prominence of ``20 log10(sum_ch |H|)`` [dB].
     fmin, fmax : float, optional
         Search only in ``[fmin, fmax]`` [Hz].
+    min_level : float, optional
+        Ignore peaks of a channel whose magnitude is below this (e.g. 1 for
+        absolute-acceleration transmissibility, where resonances amplify and
+        noise-made bumps above the last mode do not).
 
     Returns
     -------
@@ -65,15 +69,52 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None):
     if n_peaks is not None and (int(n_peaks) != n_peaks or n_peaks < 1):
         raise InputError(_SRC, "n_peaks", "a positive integer", got=n_peaks)
     sel = np.flatnonzero(_window(f, fmin, fmax))
-    with np.errstate(divide="ignore"):
-        db = 20.0 * np.log10(_summed_mag(H)[sel])
-    finite = np.isfinite(db)
-    if not finite.any():
+    # Peaks of every channel and of the channel sum: a mode that one channel
+    # barely shows (or that the 1/w^2 fall of a receptance hides in the sum)
+    # is still found in another.
+    # A resonance shows in most channels; a bump between two anti-resonances
+    # of one channel does not, so candidates need the support of most
+    # channels (or a peak of the channel sum).
+    mags = np.abs(np.atleast_2d(H))[:, sel]
+    curves = np.vstack([mags, mags.sum(axis=0)[None]])
+    cands = []  # (index, prominence, curve number)
+    n_curves = curves.shape[0]
+    for c, mag in enumerate(curves):
+        with np.errstate(divide="ignore"):
+            db = 20.0 * np.log10(mag)
+        finite = np.isfinite(db)
+        if not finite.any():
+            continue
+        db[~finite] = db[finite].min() - 100.0  # zero magnitude: a deep notch, not a gap
+        idx, props = signal.find_peaks(db, prominence=prominence_db)
+        if min_level is not None:
+            keep = mag[idx] >= min_level * (n_curves - 1 if c == n_curves - 1 else 1)
+            idx, props = idx[keep], {"prominences": props["prominences"][keep]}
+        cands += [(i, p, c) for i, p in zip(idx, props["prominences"])]
+    if not cands:
         return np.zeros(0, dtype=int)
-    db[~finite] = db[finite].min() - 100.0  # zero magnitude: a deep notch, not a gap
-    idx, props = signal.find_peaks(db, prominence=prominence_db)
+    cands.sort()
+    clusters = []
+    for i, p, c in cands:
+        if clusters and (i - clusters[-1][-1][0] <= 2
+                         or f[sel[i]] - f[sel[clusters[-1][-1][0]]] <= 0.02 * f[sel[i]]):
+            clusters[-1].append((i, p, c))
+        else:
+            clusters.append([(i, p, c)])
+    n_ch = mags.shape[0]
+    need = n_ch // 2 + 1  # a strict majority of the channels
+    idx, prom = [], []
+    for cl in clusters:
+        support = {c for _, _, c in cl}
+        if n_ch in support or len(support) >= need:
+            # rank by the channel sum's prominence where it sees the peak
+            summed = [t for t in cl if t[2] == n_ch]
+            best = max(summed or cl, key=lambda t: t[1])
+            idx.append(best[0])
+            prom.append(best[1] + (1e6 if summed else 0.0))
+    idx, prom = np.array(idx, dtype=int), np.array(prom)
     if n_peaks is not None and idx.size > n_peaks:
-        idx = idx[np.argsort(props["prominences"])[::-1][: int(n_peaks)]]
+        idx = idx[np.argsort(prom)[::-1][: int(n_peaks)]]
     return np.sort(sel[idx])
 
 
@@ -105,7 +146,8 @@ def half_power_band(f, mag, i_peak):
     mag : array_like, shape (n_f,)
         FRF magnitude (linear, not dB).
     i_peak : int
-        Index of the peak.
+        Index of the peak, or of a point on its flank: the local maximum of
+        ``mag`` uphill from it is used.
 
     Returns
     -------
@@ -121,8 +163,34 @@ def half_power_band(f, mag, i_peak):
         raise InputError(_SRC, "mag", f"a 1-D magnitude array like f {f.shape}", got=mag.shape)
     if int(i_peak) != i_peak or not 0 <= i_peak < f.size:
         raise InputError(_SRC, "i_peak", f"an index in [0, {f.size - 1}]", got=i_peak)
-    level = mag[int(i_peak)] / np.sqrt(2.0)
-    return (_crossing(f, mag, int(i_peak), level, -1), _crossing(f, mag, int(i_peak), level, +1))
+    i = int(i_peak)
+    # climb to the local maximum, so a peak index found on another curve
+    # (e.g. the channel sum) still works for a single channel
+    while True:
+        j = max((i - 1, i, i + 1), key=lambda m: mag[m] if 0 <= m < mag.size else -np.inf)
+        if j == i:
+            break
+        i = j
+    level = mag[i] / np.sqrt(2.0)
+    return _crossing(f, mag, i, level, -1), _crossing(f, mag, i, level, +1)
+
+
+def _peak_curve(f, H, i_peak):
+    """The magnitude curve (a channel or the channel sum) that peaks at i_peak
+    most sharply; the sum alone can show a weak mode only as a shoulder, and
+    climbing that shoulder would measure the neighbouring mode instead."""
+    mags = np.vstack([np.abs(np.atleast_2d(H)), _summed_mag(H)[None]])
+    lo, hi = max(i_peak - 2, 1), min(i_peak + 3, f.size - 1)
+    best, best_ratio = mags[-1], -np.inf
+    for mag in mags:
+        j = lo + int(np.argmax(mag[lo:hi]))
+        if not (mag[j] >= mag[j - 1] and mag[j] >= mag[j + 1]):
+            continue  # no local maximum here
+        near = np.abs(f - f[j]) <= 0.05 * f[j]
+        ratio = mag[j] / np.median(mag[near])
+        if ratio > best_ratio:
+            best, best_ratio = mag, ratio
+    return best
 
 
 def _peak_points(f, i_peak, band, k, min_points):
@@ -154,7 +222,7 @@ def _band_points(f, bands):
 
 def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=None,
                        n_peaks=None, min_points_per_peak=5, fmin=None, fmax=None,
-                       prominence_db=6.0):
+                       prominence_db=6.0, min_level=None):
     """Indices of the frequency points used for updating.
 
     For each resonance peak of ``sum_ch |H|`` (see `find_peaks`), keep the
@@ -177,7 +245,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
         Needs ``coherence``.
     bands : list of (float, float), optional
         Explicit frequency bands [Hz].
-    n_peaks, fmin, fmax, prominence_db :
+    n_peaks, fmin, fmax, prominence_db, min_level :
         Passed to `find_peaks`.
     min_points_per_peak : int
 
@@ -195,15 +263,15 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
         if int(min_points_per_peak) != min_points_per_peak or min_points_per_peak < 1:
             raise InputError(_SRC, "min_points_per_peak", "a positive integer",
                              got=min_points_per_peak)
-        peaks = find_peaks(f, H, n_peaks=n_peaks, prominence_db=prominence_db,
+        peaks = find_peaks(f, H, n_peaks=n_peaks, prominence_db=prominence_db, min_level=min_level,
                            fmin=fmin, fmax=fmax)
         if peaks.size == 0:
             raise InputError(_SRC, "prominence_db", "a setting that finds at least one peak "
-                             "(lower it, widen fmin/fmax or give explicit bands)", got=prominence_db)
-        mag = _summed_mag(H)
+                             "(lower it, widen fmin/fmax or give explicit bands)",
+                             got=prominence_db)
         inside = np.flatnonzero(_window(f, fmin, fmax))
-        parts = [_peak_points(f, ip, half_power_band(f, mag, ip), k, int(min_points_per_peak))
-                 for ip in peaks]
+        parts = [_peak_points(f, ip, half_power_band(f, _peak_curve(f, H, ip), ip), k,
+                              int(min_points_per_peak)) for ip in peaks]
         idx = np.intersect1d(np.concatenate(parts), inside)
     if min_coherence is not None:
         if coherence is None:

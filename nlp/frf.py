@@ -33,6 +33,7 @@ __all__ = [
     "frf_state_space",
     "frf_dynamic_stiffness",
     "modal_parameters",
+    "channel_frfs",
 ]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
@@ -139,3 +140,14 @@ def modal_parameters(M, C, K):
     order = np.argsort(np.abs(s))
     s, Phi = s[order], Phi[:, order]
     return np.abs(s) / (2 * np.pi), -s.real / np.abs(s), Phi
+
+
+def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None):
+    """FRF of each channel (objects with ``dof`` and ``output``): (n_ch, N) complex."""
+    out = {}
+    rows = []
+    for ch in channels:
+        if ch.output not in out:
+            out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output)
+        rows.append(out[ch.output][ch.dof])
+    return np.array(rows)

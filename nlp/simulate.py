@@ -57,7 +57,8 @@ def _check_matrices(M, C, K):
     n = mats["M"].shape[0]
     for name in ("C", "K"):
         if mats[name].shape != (n, n):
-            raise InputError(_SRC, name, f"shape ({n}, {n}) like M", got=f"shape {mats[name].shape}")
+            raise InputError(_SRC, name, f"shape ({n}, {n}) like M",
+                             got=f"shape {mats[name].shape}")
     return mats["M"], mats["C"], mats["K"]
 
 

@@ -1,0 +1,422 @@
+"""The case file: typed dataclasses, validated once at load.
+
+Every user mistake raises one :class:`nlp.errors.InputError` naming the file,
+the key and what is expected. See the README's case-file reference.
+"""
+
+from dataclasses import dataclass, field
+import math
+import os
+
+import yaml
+
+from .errors import InputError
+
+__all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
+           "ExcitationConfig", "ChannelConfig", "DataConfig", "FrequencyConfig",
+           "ObjectiveConfig", "SolverSection", "SearchSection"]
+
+OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
+RESIDUALS = ("log_magnitude", "magnitude", "complex")
+SOLVERS = ("ipopt", "sqpmethod")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    type: str                      # "shear_frame" | "matrices"
+    masses: tuple = ()             # shear_frame: kg per floor
+    stiffnesses: tuple = ()        # shear_frame: N/m per story
+    file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
+
+
+@dataclass(frozen=True)
+class ParameterConfig:
+    stiffness_bounds: tuple = (-0.5, 1.0)   # relative change
+    mass_bounds: tuple = (-0.5, 1.0)
+    fixed: dict = field(default_factory=dict)     # name -> physical value
+    initial: dict = field(default_factory=dict)   # name -> physical value
+    bounds: dict = field(default_factory=dict)    # name -> (lo, hi) physical
+    ties: dict = field(default_factory=dict)      # label -> [names]
+    total_mass: float = None
+
+
+@dataclass(frozen=True)
+class DampingConfig:
+    model: str = "general"                 # general | rayleigh | modal
+    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n
+    a0: float = None
+    a1: float = None
+    matrix: tuple = None                   # initial C [N s/m]
+    modal_zeta: tuple = None               # modal: initial ratios
+    diag_factor: float = 30.0
+    offdiag: float = 3.0
+
+
+@dataclass(frozen=True)
+class ExcitationConfig:
+    type: str = "ground"                   # ground | force
+    floor: int = None                      # force: 1-based
+
+
+@dataclass(frozen=True)
+class ChannelConfig:
+    name: str
+    floor: int                             # 1-based
+    output: str
+    column: int                            # 0-based column in the data file's FRF array
+    weight: float = 1.0
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    file: str                              # absolute path
+    format: str = "auto"                   # auto | npz | complex | magphase | db
+    unit_factor: float = 1.0               # multiplies the file's FRF to SI
+    channels: tuple = ()
+
+
+@dataclass(frozen=True)
+class FrequencyConfig:
+    method: str = "half_power"             # half_power | bands | points | all
+    k: float = 1.0
+    bands: tuple = ()
+    points: tuple = ()
+    fmin: float = None
+    fmax: float = None
+    n_peaks: int = None
+    min_points_per_peak: int = 5
+
+
+@dataclass(frozen=True)
+class ObjectiveConfig:
+    residual: str = "log_magnitude"
+
+
+@dataclass(frozen=True)
+class SolverSection:
+    name: str = "ipopt"
+    options: dict = field(default_factory=dict)
+    compile: bool = True
+
+
+@dataclass(frozen=True)
+class SearchSection:
+    starts: int = 20
+    trial_factor: int = 10
+    seed: int = 0
+    workers: int = 1
+
+
+@dataclass(frozen=True)
+class CaseConfig:
+    path: str
+    name: str
+    description: str
+    model: ModelConfig
+    parameters: ParameterConfig
+    damping: DampingConfig
+    excitation: ExcitationConfig
+    data: DataConfig
+    frequencies: FrequencyConfig
+    objective: ObjectiveConfig
+    solver: SolverSection
+    search: SearchSection
+
+
+class _Reader:
+    """Typed access to a YAML mapping with errors that name file and key."""
+
+    def __init__(self, file):
+        self.file = file
+
+    def err(self, key, expected, got=None):
+        return InputError(self.file, key, expected, got)
+
+    def mapping(self, d, key, required=False):
+        if key is not None:
+            if not isinstance(d, dict):
+                raise self.err(key.rsplit(".", 1)[0], "a mapping", d)
+        v = d if key is None else d.get(key.rsplit(".", 1)[-1])
+        if v is None:
+            if required:
+                raise self.err(key, "a mapping (this section is required)")
+            return {}
+        if not isinstance(v, dict):
+            raise self.err(key, "a mapping of keys to values", v)
+        return v
+
+    def check_keys(self, d, key, allowed):
+        for k in d:
+            if k not in allowed:
+                raise self.err(f"{key}.{k}" if key else k,
+                               f"one of the known keys {sorted(allowed)}", k)
+
+    def number(self, d, key, path, default=None, positive=False, required=False, integer=False):
+        if key not in d or d[key] is None:
+            if required:
+                raise self.err(path, "a number (required)")
+            return default
+        v = d[key]
+        kind = "an integer" if integer else "a number"
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self.err(path, f"{kind}{' > 0' if positive else ''}", v)
+        if integer and int(v) != v:
+            raise self.err(path, kind, v)
+        if positive and v <= 0:
+            raise self.err(path, f"{kind} > 0", v)
+        return int(v) if integer else float(v)
+
+    def choice(self, d, key, path, choices, default):
+        v = d.get(key, default)
+        if v not in choices:
+            raise self.err(path, f"one of {list(choices)}", v)
+        return v
+
+    def numbers(self, v, path, length=None, positive=False):
+        if not isinstance(v, (list, tuple)) or not v:
+            raise self.err(path, "a non-empty list of numbers", v)
+        out = []
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                raise self.err(f"{path}[{i}]", "a finite number", x)
+            if positive and x <= 0:
+                raise self.err(f"{path}[{i}]", "a number > 0", x)
+            out.append(float(x))
+        if length is not None and len(out) != length:
+            raise self.err(path, f"a list of {length} numbers", f"{len(out)} numbers")
+        return tuple(out)
+
+    def interval(self, v, path):
+        lo, hi = self.numbers(v, path, length=2)
+        if not lo < hi:
+            raise self.err(path, "[lower, upper] with lower < upper", list(v))
+        return lo, hi
+
+
+def load_case(path, overrides=None):
+    """Read and validate a case file; returns a :class:`CaseConfig`.
+
+    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``.
+    """
+    path = os.path.abspath(path)
+    if not os.path.isfile(path):
+        raise InputError(path, "<file>", "an existing case YAML file")
+    try:
+        with open(path) as fh:
+            raw = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
+    rd = _Reader(path)
+    if not isinstance(raw, dict):
+        raise rd.err("<file>", "a YAML mapping at the top level", type(raw).__name__)
+    rd.check_keys(raw, "", {"name", "description", "model", "parameters", "damping",
+                            "excitation", "data", "frequencies", "objective", "solver", "search"})
+    base = os.path.dirname(path)
+    model = _model(rd, rd.mapping(raw, "model", required=True), base)
+    n = len(model.masses) if model.type == "shear_frame" else None
+    cfg = CaseConfig(
+        path=path,
+        name=str(raw.get("name") or os.path.basename(base)),
+        description=str(raw.get("description", "")),
+        model=model,
+        parameters=_parameters(rd, rd.mapping(raw, "parameters")),
+        damping=_damping(rd, rd.mapping(raw, "damping"), n),
+        excitation=_excitation(rd, rd.mapping(raw, "excitation")),
+        data=_data(rd, rd.mapping(raw, "data", required=True), base),
+        frequencies=_frequencies(rd, rd.mapping(raw, "frequencies")),
+        objective=_objective(rd, rd.mapping(raw, "objective")),
+        solver=_solver(rd, rd.mapping(raw, "solver")),
+        search=_search(rd, rd.mapping(raw, "search")),
+    )
+    return _apply_overrides(cfg, overrides or {}, rd)
+
+
+def _model(rd, d, base):
+    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file"})
+    kind = rd.choice(d, "type", "model.type", ("shear_frame", "matrices"), "shear_frame")
+    if kind == "shear_frame":
+        if "masses" not in d:
+            raise rd.err("model.masses", "a list of floor masses in kg (required)")
+        if "stiffnesses" not in d:
+            raise rd.err("model.stiffnesses", "a list of story stiffnesses in N/m (required)")
+        m = rd.numbers(d["masses"], "model.masses", positive=True)
+        k = rd.numbers(d["stiffnesses"], "model.stiffnesses", positive=True)
+        if len(k) != len(m):
+            raise rd.err("model.stiffnesses", f"{len(m)} values, one per story like model.masses",
+                         f"{len(k)} values")
+        return ModelConfig(type=kind, masses=m, stiffnesses=k)
+    if "file" not in d:
+        raise rd.err("model.file", "a .npz or .mat file with M0, K0, M_infl, K_infl")
+    f = os.path.join(base, str(d["file"]))
+    if not os.path.isfile(f):
+        raise rd.err("model.file", "an existing file", d["file"])
+    return ModelConfig(type=kind, file=f)
+
+
+def _parameters(rd, d):
+    rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
+                                    "bounds", "tie", "total_mass"})
+    out = {}
+    for key in ("stiffness_bounds", "mass_bounds"):
+        if key in d:
+            lo, hi = rd.interval(d[key], f"parameters.{key}")
+            if lo <= -1:
+                raise rd.err(f"parameters.{key}", "relative bounds with lower > -1 "
+                             "(a mass or stiffness must stay positive)", list(d[key]))
+            out[key] = (lo, hi)
+    for key in ("fixed", "initial"):
+        m = rd.mapping(d, f"parameters.{key}")
+        out[key] = {str(k): rd.number(m, k, f"parameters.{key}.{k}", required=True) for k in m}
+    bm = rd.mapping(d, "parameters.bounds")
+    out["bounds"] = {str(k): rd.interval(v, f"parameters.bounds.{k}") for k, v in bm.items()}
+    tm = rd.mapping(d, "parameters.tie")
+    ties = {}
+    for label, names in tm.items():
+        if not isinstance(names, list) or len(names) < 2 or not all(isinstance(x, str) for x in names):
+            raise rd.err(f"parameters.tie.{label}", "a list of two or more parameter names", names)
+        ties[str(label)] = tuple(names)
+    out["ties"] = ties
+    out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    return ParameterConfig(**out)
+
+
+def _damping(rd, d, n):
+    rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
+                                 "diag_factor", "offdiag"})
+    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+    out = dict(model=model)
+    out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
+    out["a0"] = rd.number(d, "a0", "damping.a0")
+    out["a1"] = rd.number(d, "a1", "damping.a1")
+    if (out["a0"] is None) != (out["a1"] is None):
+        raise rd.err("damping.a1" if out["a1"] is None else "damping.a0",
+                     "both Rayleigh coefficients a0 [1/s] and a1 [s], or neither")
+    for key in ("a0", "a1"):
+        if out[key] is not None and out[key] < 0:
+            raise rd.err(f"damping.{key}", "a number >= 0", out[key])
+    if "matrix" in d:
+        rows = d["matrix"]
+        if not isinstance(rows, list) or not rows:
+            raise rd.err("damping.matrix", "a square matrix as a list of rows", rows)
+        mat = tuple(rd.numbers(r, f"damping.matrix[{i}]", length=len(rows)) for i, r in enumerate(rows))
+        if n is not None and len(mat) != n:
+            raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
+        out["matrix"] = mat
+    if "modal_zeta" in d:
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+    out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
+    out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
+    if out["diag_factor"] <= 1:
+        raise rd.err("damping.diag_factor", "a number > 1", out["diag_factor"])
+    return DampingConfig(**out)
+
+
+def _excitation(rd, d):
+    rd.check_keys(d, "excitation", {"type", "floor"})
+    kind = rd.choice(d, "type", "excitation.type", ("ground", "force"), "ground")
+    floor = None
+    if kind == "force":
+        floor = rd.number(d, "floor", "excitation.floor", required=True, positive=True, integer=True)
+    return ExcitationConfig(type=kind, floor=floor)
+
+
+def _data(rd, d, base):
+    rd.check_keys(d, "data", {"file", "format", "unit_factor", "channels"})
+    if "file" not in d:
+        raise rd.err("data.file", "the path of the measured FRF file (required)")
+    f = os.path.join(base, str(d["file"]))
+    if not os.path.isfile(f):
+        raise rd.err("data.file", "an existing file (relative to the case file)", d["file"])
+    fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db"), "auto")
+    unit = rd.number(d, "unit_factor", "data.unit_factor", 1.0, positive=True)
+    chans = d.get("channels")
+    if not isinstance(chans, list) or not chans:
+        raise rd.err("data.channels", "a list of channels, each {name, floor, output, column}", chans)
+    out = []
+    names = set()
+    for i, c in enumerate(chans):
+        key = f"data.channels[{i}]"
+        if not isinstance(c, dict):
+            raise rd.err(key, "a mapping {name, floor, output, column}", c)
+        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight"})
+        name = str(c.get("name", f"ch{i + 1}"))
+        if name in names:
+            raise rd.err(f"{key}.name", "a unique channel name", name)
+        names.add(name)
+        floor = rd.number(c, "floor", f"{key}.floor", required=True, positive=True, integer=True)
+        output = rd.choice(c, "output", f"{key}.output", OUTPUTS, None)
+        col = rd.number(c, "column", f"{key}.column", i, integer=True)
+        if col < 0:
+            raise rd.err(f"{key}.column", "a column index >= 0", col)
+        w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
+        out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w))
+    return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out))
+
+
+def _frequencies(rd, d):
+    rd.check_keys(d, "frequencies", {"method", "k", "bands", "points", "fmin", "fmax",
+                                     "n_peaks", "min_points_per_peak"})
+    method = rd.choice(d, "method", "frequencies.method", ("half_power", "bands", "points", "all"),
+                       "half_power")
+    out = dict(method=method)
+    out["k"] = rd.number(d, "k", "frequencies.k", 1.0, positive=True)
+    out["fmin"] = rd.number(d, "fmin", "frequencies.fmin")
+    out["fmax"] = rd.number(d, "fmax", "frequencies.fmax")
+    if out["fmin"] is not None and out["fmax"] is not None and out["fmin"] >= out["fmax"]:
+        raise rd.err("frequencies.fmax", f"a value above fmin = {out['fmin']}", out["fmax"])
+    out["n_peaks"] = rd.number(d, "n_peaks", "frequencies.n_peaks", None, positive=True, integer=True)
+    out["min_points_per_peak"] = rd.number(d, "min_points_per_peak",
+                                           "frequencies.min_points_per_peak", 5, positive=True,
+                                           integer=True)
+    if method == "bands":
+        bands = d.get("bands")
+        if not isinstance(bands, list) or not bands:
+            raise rd.err("frequencies.bands", "a list of [f_lo, f_hi] bands in Hz", bands)
+        out["bands"] = tuple(rd.interval(b, f"frequencies.bands[{i}]") for i, b in enumerate(bands))
+    if method == "points":
+        out["points"] = rd.numbers(d.get("points"), "frequencies.points", positive=True)
+    return FrequencyConfig(**out)
+
+
+def _objective(rd, d):
+    rd.check_keys(d, "objective", {"residual"})
+    return ObjectiveConfig(residual=rd.choice(d, "residual", "objective.residual", RESIDUALS,
+                                              "log_magnitude"))
+
+
+def _solver(rd, d):
+    rd.check_keys(d, "solver", {"name", "options", "compile"})
+    name = rd.choice(d, "name", "solver.name", SOLVERS, "ipopt")
+    opts = rd.mapping(d, "solver.options")
+    comp = d.get("compile", True)
+    if not isinstance(comp, bool):
+        raise rd.err("solver.compile", "true or false", comp)
+    return SolverSection(name=name, options=dict(opts), compile=comp)
+
+
+def _search(rd, d):
+    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers"})
+    return SearchSection(
+        starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
+        trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
+                               integer=True),
+        seed=rd.number(d, "seed", "search.seed", 0, integer=True),
+        workers=rd.number(d, "workers", "search.workers", 1, positive=True, integer=True),
+    )
+
+
+def _apply_overrides(cfg, ov, rd):
+    from dataclasses import replace
+    search, solver = cfg.search, cfg.solver
+    for key in ("starts", "seed", "workers"):
+        if ov.get(key) is not None:
+            v = ov[key]
+            if key != "seed" and v < 1:
+                raise InputError("<arguments>", f"--{key}", "an integer >= 1", v)
+            search = replace(search, **{key: int(v)})
+    if ov.get("solver") is not None:
+        if ov["solver"] not in SOLVERS:
+            raise InputError("<arguments>", "--solver", f"one of {list(SOLVERS)}", ov["solver"])
+        if ov["solver"] != solver.name:
+            solver = replace(solver, name=ov["solver"], options={})
+    return replace(cfg, search=search, solver=solver)

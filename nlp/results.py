@@ -1,0 +1,131 @@
+"""Result files: result.json and the Table-1-like parameters.csv, written atomically."""
+
+import csv
+import io
+import json
+import os
+import tempfile
+
+import numpy as np
+
+from .frf import channel_frfs, modal_parameters
+from .identify import jacobian_report, standard_errors
+from .metrics import fdac
+
+__all__ = ["summarize", "write_atomic", "write_json", "parameters_table", "UNITS"]
+
+UNITS = {"stiffness": "N/m", "mass": "kg", "damping": "-"}
+
+
+def write_atomic(path, data, mode="w"):
+    """Write to a temporary file beside ``path`` and rename it into place."""
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-")
+    try:
+        with os.fdopen(fd, mode) as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path, obj):
+    write_atomic(path, json.dumps(obj, indent=2, default=_jsonable) + "\n")
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    raise TypeError(type(x).__name__)
+
+
+def _physical(p, value):
+    return p.nominal * (1 + value) if p.nominal is not None else value
+
+
+def _modal(M, C, K):
+    fn, zeta, _ = modal_parameters(M, C, K)
+    return {"natural_frequencies_hz": fn, "damping_ratios": zeta}
+
+
+def summarize(case, problem, search):
+    """The content of result.json for a finished (or interrupted) search."""
+    params = case.params
+    z_best = search.best.z
+    theta0 = np.array([p.initial for p in params.params])
+    theta = problem.theta(z_best)
+    r, J = problem.residuals(z_best)
+    cov_z, s2, dof = standard_errors(J, r, problem.n_used)
+    cov_theta = params.T @ cov_z @ params.T.T
+    se_theta = np.sqrt(np.clip(np.diag(cov_theta), 0, None))
+    near = search.near_best
+    spread = search.spread(problem.theta)
+    rows = []
+    for i, p in enumerate(params.params):
+        scale = p.nominal if p.nominal is not None else 1.0
+        rows.append({
+            "name": p.name, "group": p.group, "unit": UNITS[p.group],
+            "initial": _physical(p, theta0[i]), "updated": _physical(p, theta[i]),
+            "relative_change": float(theta[i]) if p.nominal is not None else None,
+            "lower": _physical(p, p.lower), "upper": _physical(p, p.upper),
+            "fixed": p.fixed, "tie": p.tie,
+            "standard_error": 0.0 if p.fixed else float(scale * se_theta[i]),
+            "spread_near_best": {"min": _physical(p, spread["min"][i]),
+                                 "max": _physical(p, spread["max"][i])},
+        })
+    M0, K0, C0 = problem.matrices(params.z0)
+    M, K, C = problem.matrices(z_best)
+    tg = case.target
+    Ha0 = channel_frfs(M0, C0, K0, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    cfg = case.config
+    return {
+        "case": cfg.name, "case_file": cfg.path,
+        "excitation": {"type": tg.excitation,
+                       "floor": None if tg.force_dof is None else tg.force_dof + 1},
+        "residual": cfg.objective.residual,
+        "frequencies_hz": (tg.omega / (2 * np.pi)),
+        "n_residuals": problem.n_used,
+        "parameters": rows,
+        "matrices": {"initial": {"M": M0, "K": K0, "C": C0}, "updated": {"M": M, "K": K, "C": C}},
+        "modal": {"initial": _modal(M0, C0, K0), "updated": _modal(M, C, K)},
+        "objective": {"initial": problem.objective(params.z0), "updated": search.best.f,
+                      "noise_variance_estimate": s2, "degrees_of_freedom": dof},
+        "fdac": {"initial": dict(zip([c.name for c in case.channels], fdac(Ha0, tg.H))),
+                 "updated": dict(zip([c.name for c in case.channels], fdac(Ha, tg.H)))},
+        "identifiability": {
+            "scale": ("anchored by total mass" if cfg.parameters.total_mass is not None
+                      else "fixed by force input" if tg.excitation == "force"
+                      else "anchored by fixed mass parameter(s)"),
+            **jacobian_report(J, params.z_names)},
+        "solver": {"name": cfg.solver.name, "options": cfg.solver.options,
+                   "compiled": problem.compiled, "status": search.best.status,
+                   "iterations": search.best.iterations, "seconds": search.best.seconds},
+        "search": {"seed": cfg.search.seed, "trial_points": search.n_trial,
+                   "starts_requested": search.n_requested, "starts_finished": len(search.results),
+                   "interrupted": search.interrupted, "seconds": search.seconds,
+                   "starts_within_1pct_of_best": len(near),
+                   "starts": [{"index": i, "f": r.f, "success": r.success, "status": r.status,
+                               "iterations": r.iterations, "seconds": r.seconds}
+                              for i, r in enumerate(search.results)]},
+    }
+
+
+def parameters_table(result):
+    """Table 1 layout: a column per mass/stiffness, rows initial/updated/error/bounds."""
+    cols = [p for p in result["parameters"] if p["group"] in ("mass", "stiffness")]
+    cols.sort(key=lambda p: (p["group"] != "mass",))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["Parameter (kg or N/m)"] + [p["name"] for p in cols])
+    for label, key in (("Initial", "initial"), ("Updated", "updated"),
+                       ("Standard error", "standard_error"), ("Lower bound", "lower"),
+                       ("Upper bound", "upper")):
+        w.writerow([label] + [f"{p[key]:.6g}" for p in cols])
+    w.writerow(["Fixed"] + ["yes" if p["fixed"] else "no" for p in cols])
+    return buf.getvalue()

@@ -1,0 +1,40 @@
+"""Shared fixtures: the paper's four-story frame (Table 1) and random systems."""
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "scripts"))
+
+TABLE1_INITIAL_M = np.full(4, 4.64)
+TABLE1_INITIAL_K = np.array([1019.0, 1217.0, 1420.0, 2473.0])
+
+
+def shear_K(k):
+    """Independent shear-frame stiffness (written again here on purpose)."""
+    n = len(k)
+    K = np.zeros((n, n))
+    for i in range(n):
+        K[i, i] += k[i]
+        if i + 1 < n:
+            K[i, i] += k[i + 1]
+            K[i, i + 1] = K[i + 1, i] = -k[i + 1]
+    return K
+
+
+def random_system(n, rng):
+    """Random SPD M, K and a non-proportional SPD C."""
+    A = rng.standard_normal((n, n))
+    M = A @ A.T + n * np.eye(n)
+    B = rng.standard_normal((n, n))
+    K = 100 * (B @ B.T + n * np.eye(n))
+    D = rng.standard_normal((n, n))
+    C = 0.5 * (D @ D.T) + 0.1 * np.eye(n)
+    return M, C, K
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)

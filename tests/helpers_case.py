@@ -1,0 +1,42 @@
+"""Write small case folders for tests (YAML + NPZ), from the truth of scripts/make_four_story."""
+
+import os
+
+import numpy as np
+import yaml
+
+from make_four_story import make
+
+BASE = {
+    "name": "test_case",
+    "model": {"type": "shear_frame", "masses": [4.64] * 4, "stiffnesses": [1019, 1217, 1420, 2473]},
+    "parameters": {"fixed": {"m1": 5.16}},
+    "damping": {"model": "general", "zeta": 0.02},
+    "excitation": {"type": "ground"},
+    "data": {"file": "frf.npz", "channels": [
+        {"name": f"floor{i + 1}", "floor": i + 1, "output": "receptance", "column": i}
+        for i in range(4)]},
+    "frequencies": {"method": "all", "fmin": 0.5, "fmax": 6.5},
+    "objective": {"residual": "log_magnitude"},
+    "solver": {"name": "ipopt", "options": {}},
+    "search": {"starts": 1, "seed": 0, "workers": 1},
+}
+
+
+def deep_update(d, u):
+    out = dict(d)
+    for k, v in u.items():
+        out[k] = deep_update(d[k], v) if isinstance(v, dict) and isinstance(d.get(k), dict) else v
+    return out
+
+
+def write_case(folder, noise=0.0, seed=0, H=None, f=None, **changes):
+    """Write frf.npz and case.yaml in folder; returns (case path, truth)."""
+    os.makedirs(folder, exist_ok=True)
+    f0, H0, truth = make(seed=seed, noise=noise)
+    np.savez(os.path.join(folder, "frf.npz"), f=f0 if f is None else f, H=H0 if H is None else H)
+    cfg = deep_update(BASE, changes)
+    path = os.path.join(folder, "case.yaml")
+    with open(path, "w") as fh:
+        yaml.safe_dump(cfg, fh)
+    return path, truth
