@@ -24,9 +24,13 @@ BASE = {
 
 
 def deep_update(d, u):
+    """Merge u into d; a value of None deletes the key."""
     out = dict(d)
     for k, v in u.items():
-        out[k] = deep_update(d[k], v) if isinstance(v, dict) and isinstance(d.get(k), dict) else v
+        if v is None:
+            out.pop(k, None)
+        else:
+            out[k] = deep_update(d[k], v) if isinstance(v, dict) and isinstance(d.get(k), dict) else v
     return out
 
 

@@ -66,7 +66,7 @@ def test_two_percent_noise_within_two_percent(tmp_path, solver):
 
 def test_total_mass_anchor(tmp_path):
     total = 5.16 + 5.15 + 4.94 + 5.14
-    case, pr, truth = _problem(tmp_path, noise=0.0, parameters={"fixed": {}, "total_mass": total})
+    case, pr, truth = _problem(tmp_path, noise=0.0, parameters={"fixed": None, "total_mass": total})
     res = pr.solve()
     assert res.success, res.status
     M, _, _ = pr.matrices(res.z)
@@ -84,7 +84,7 @@ def test_force_input_recovers_all_masses_without_anchor(tmp_path):
     H = frf_dynamic_stiffness(M, true_damping(M, K), K, 2 * np.pi * f, "force", 0, "accelerance")
     chans = [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance", "column": i}
              for i in range(4)]
-    case, pr, truth = _problem(tmp_path, H=H, f=f, parameters={"fixed": {}},
+    case, pr, truth = _problem(tmp_path, H=H, f=f, parameters={"fixed": None},
                                excitation={"type": "force", "floor": 1},
                                data={"file": "frf.npz", "channels": chans})
     res = pr.solve()
