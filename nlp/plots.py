@@ -37,7 +37,7 @@ def plot_frf_overlays(out_dir, case, initial, updated):
     for c, ch in enumerate(case.channels):
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 6), sharex=True,
                                      gridspec_kw={"height_ratios": [2, 1]})
-        a1.plot(f, _db(Hx[c]), color="0.55", lw=1, label="experimental")
+        a1.plot(f, _db(Hx[c]), color="0.45", lw=3, alpha=0.5, label="experimental")
         a1.plot(f, _db(H0[c]), "--", color="tab:blue", lw=1.2, label="initial")
         a1.plot(f, _db(H1[c]), color="tab:red", lw=1.4, label="updated")
         a1.plot(f_sel, _db(tg.H[c]), ".", color="k", ms=3, label="points used")
@@ -45,7 +45,7 @@ def plot_frf_overlays(out_dir, case, initial, updated):
         a1.set_title(f"{case.config.name}: {ch.name} ({ch.output}, floor {ch.dof + 1})")
         a1.legend(loc="best", fontsize=8)
         a1.grid(alpha=0.3)
-        a2.plot(f, np.degrees(np.angle(Hx[c])), color="0.55", lw=1)
+        a2.plot(f, np.degrees(np.angle(Hx[c])), color="0.45", lw=3, alpha=0.5)
         a2.plot(f, np.degrees(np.angle(H0[c])), "--", color="tab:blue", lw=1.2)
         a2.plot(f, np.degrees(np.angle(H1[c])), color="tab:red", lw=1.4)
         a2.set_ylabel("phase [deg]")
