@@ -13,7 +13,8 @@ from .identify import SCALE_EXPLANATION, scale_null_space
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
-from .readers import read_frf
+from .estimate import estimate_frf
+from .readers import read_frf, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem"]
 
@@ -31,6 +32,8 @@ class Case:
     channels: tuple          # problem.Channel
     selected: np.ndarray     # indices into f used in the objective
     target: Target
+    coherence: np.ndarray = None   # (n_ch, n_f) when estimated from records
+    records: object = None         # readers.TimeHistories when the data are records
 
 
 def _load_model(cfg):
@@ -144,13 +147,29 @@ def _parameters(cfg, model, damping):
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
-def _read_data(cfg):
+def _read_data(cfg, path=None):
+    """(f, H, coherence, records) of the case's data file (or another test's)."""
     d = cfg.data
-    fmt = d.format
-    if fmt == "auto":
-        fmt = "npz" if d.file.endswith(".npz") else "complex"
-    f, H = read_frf(d.file, fmt=fmt if fmt != "npz" else "complex")
-    return f, H * d.unit_factor
+    path = path or d.file
+    if d.type == "frf":
+        fmt = d.format
+        if fmt == "auto":
+            fmt = "npz" if path.endswith(".npz") else "complex"
+        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex")
+        return f, H * d.unit_factor, None, None
+    inp = d.input
+    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"]}}
+    for c in d.channels:
+        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit}
+    spec = {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
+    rec = read_time_histories(path, spec)
+    x = rec.data["__input__"]
+    y = np.array([rec.data[c.name] for c in d.channels])
+    nperseg = x.size if d.nperseg == "all" else d.nperseg
+    noverlap = None if nperseg is None else int(d.overlap * nperseg)
+    est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg, noverlap=noverlap,
+                       window=d.window, source=path)
+    return est.f, est.H, est.coherence, rec
 
 
 def _detection_form(f, H, channels, excitation):
@@ -167,7 +186,7 @@ def _detection_form(f, H, channels, excitation):
     return out
 
 
-def _select(cfg, f, H, channels, excitation):
+def _select(cfg, f, H, channels, excitation, coherence=None):
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -180,6 +199,7 @@ def _select(cfg, f, H, channels, excitation):
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
         idx = select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
+                                 coherence=coherence, min_coherence=fc.min_coherence,
                                  bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                                  min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
                                  fmax=fc.fmax)
@@ -191,34 +211,44 @@ def _select(cfg, f, H, channels, excitation):
     return idx
 
 
-def assemble(cfg):
-    """Model, damping, parameters and selected data for a validated case."""
+def assemble(cfg, channels=None, data_file=None):
+    """Model, damping, parameters and selected data for a validated case.
+
+    channels : names of the channels to use (default all); data_file : read
+    another test of the same structure instead of ``data.file``.
+    """
     model = _load_model(cfg)
     n = model.n
     damping = _damping(cfg, model)
     params = _parameters(cfg, model, damping)
-    f, H = _read_data(cfg)
+    f, H, coherence, records = _read_data(cfg, data_file)
     ex = cfg.excitation
     if ex.type == "force" and ex.floor > n:
         raise InputError(cfg.path, "excitation.floor", f"a floor number from 1 to {n}", ex.floor)
-    channels = []
-    cols = []
+    chans = []
+    rows = []
     for i, c in enumerate(cfg.data.channels):
+        if channels is not None and c.name not in channels:
+            continue
         key = f"data.channels[{i}]"
         if c.floor > n:
             raise InputError(cfg.path, f"{key}.floor", f"a floor number from 1 to {n}", c.floor)
-        if c.column >= H.shape[0]:
+        if cfg.data.type == "frf" and c.column >= H.shape[0]:
             raise InputError(cfg.path, f"{key}.column",
                              f"a column index below {H.shape[0]} (the data file has {H.shape[0]} FRFs)",
                              c.column)
         if c.output == "absolute_accelerance" and ex.type != "ground":
             raise InputError(cfg.path, f"{key}.output", "receptance, mobility or accelerance "
                              "(absolute_accelerance needs ground excitation)", c.output)
-        channels.append(Channel(c.name, c.floor - 1, c.output))
-        cols.append(c.column)
-    H = H[cols]
-    idx = _select(cfg, f, H, channels, ex.type)
-    weights = np.array([c.weight for c in cfg.data.channels])[:, None] * np.ones(idx.size)
+        chans.append(Channel(c.name, c.floor - 1, c.output))
+        rows.append(c.column if cfg.data.type == "frf" else i)
+    channels, weights = chans, np.array([c.weight for c in cfg.data.channels
+                                         if channels is None or c.name in channels])
+    H = H[rows]
+    if coherence is not None:
+        coherence = coherence[rows]
+    idx = _select(cfg, f, H, channels, ex.type, coherence)
+    weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type,
                     force_dof=None if ex.floor is None else ex.floor - 1)
@@ -227,7 +257,8 @@ def assemble(cfg):
                          "a scale anchor (a fixed weighed mass or parameters.total_mass). "
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
-                channels=tuple(channels), selected=idx, target=target)
+                channels=tuple(channels), selected=idx, target=target, coherence=coherence,
+                records=records)
 
 
 def build_problem(case):

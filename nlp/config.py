@@ -62,9 +62,11 @@ class ExcitationConfig:
 class ChannelConfig:
     name: str
     floor: int                             # 1-based
-    output: str
-    column: int                            # 0-based column in the data file's FRF array
+    output: str                            # derived from quantity for time histories
+    column: object                         # FRF file: 0-based index; records: column name
     weight: float = 1.0
+    quantity: str = None                   # time histories: acceleration | displacement | velocity
+    unit: str = None                       # time histories: unit in the file
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,13 @@ class DataConfig:
     format: str = "auto"                   # auto | npz | complex | magphase | db
     unit_factor: float = 1.0               # multiplies the file's FRF to SI
     channels: tuple = ()
+    type: str = "frf"                      # frf | time_histories
+    input: dict = None                     # time histories: {column, quantity, unit, floor}
+    estimator: str = "H1"                  # H1 | H2 | Hv
+    nperseg: object = None                 # samples per segment, or "all"
+    overlap: float = 0.5
+    window: str = "hann"
+    validation_file: str = None            # another test of the same structure (held out)
 
 
 @dataclass(frozen=True)
@@ -85,6 +94,7 @@ class FrequencyConfig:
     fmax: float = None
     n_peaks: int = None
     min_points_per_peak: int = 5
+    min_coherence: float = None
 
 
 @dataclass(frozen=True)
@@ -121,6 +131,8 @@ class CaseConfig:
     objective: ObjectiveConfig
     solver: SolverSection
     search: SearchSection
+    updates: dict = field(default_factory=dict)   # name -> channel names, averaged (Table 1)
+    closeup_seconds: float = 3.0
 
 
 class _Reader:
@@ -210,7 +222,8 @@ def load_case(path, overrides=None):
     if not isinstance(raw, dict):
         raise rd.err("<file>", "a YAML mapping at the top level", type(raw).__name__)
     rd.check_keys(raw, "", {"name", "description", "model", "parameters", "damping",
-                            "excitation", "data", "frequencies", "objective", "solver", "search"})
+                            "excitation", "data", "frequencies", "objective", "solver", "search",
+                            "updates", "verification"})
     base = os.path.dirname(path)
     model = _model(rd, rd.mapping(raw, "model", required=True), base)
     n = len(model.masses) if model.type == "shear_frame" else None
@@ -228,6 +241,7 @@ def load_case(path, overrides=None):
         solver=_solver(rd, rd.mapping(raw, "solver")),
         search=_search(rd, rd.mapping(raw, "search")),
     )
+    cfg = _updates_and_verification(rd, raw, cfg)
     return _apply_overrides(cfg, overrides or {}, rd)
 
 
@@ -320,15 +334,38 @@ def _excitation(rd, d):
     return ExcitationConfig(type=kind, floor=floor)
 
 
+_QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
+
+
 def _data(rd, d, base):
-    rd.check_keys(d, "data", {"file", "format", "unit_factor", "channels"})
+    rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
+                              "estimator", "nperseg", "overlap", "window", "validation_file"})
+    kind = rd.choice(d, "type", "data.type", ("frf", "time_histories"), "frf")
+    records = kind == "time_histories"
     if "file" not in d:
-        raise rd.err("data.file", "the path of the measured FRF file (required)")
+        raise rd.err("data.file", "the path of the measured data file (required)")
     f = os.path.join(base, str(d["file"]))
     if not os.path.isfile(f):
         raise rd.err("data.file", "an existing file (relative to the case file)", d["file"])
+    val = None
+    if d.get("validation_file") is not None:
+        val = os.path.join(base, str(d["validation_file"]))
+        if not os.path.isfile(val):
+            raise rd.err("data.validation_file", "an existing file", d["validation_file"])
     fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db"), "auto")
     unit = rd.number(d, "unit_factor", "data.unit_factor", 1.0, positive=True)
+    inp = None
+    if records:
+        inp = rd.mapping(d, "data.input", required=True)
+        rd.check_keys(inp, "data.input", {"column", "quantity", "unit", "floor"})
+        q = rd.choice(inp, "quantity", "data.input.quantity", ("ground_acceleration", "force"), None)
+        if "column" not in inp:
+            raise rd.err("data.input.column", "the name of the input record's column")
+        floor = None
+        if q == "force":
+            floor = rd.number(inp, "floor", "data.input.floor", required=True, positive=True,
+                              integer=True)
+        inp = {"column": str(inp["column"]), "quantity": q, "unit": inp.get("unit"), "floor": floor}
     chans = d.get("channels")
     if not isinstance(chans, list) or not chans:
         raise rd.err("data.channels", "a list of channels, each {name, floor, output, column}", chans)
@@ -338,24 +375,68 @@ def _data(rd, d, base):
         key = f"data.channels[{i}]"
         if not isinstance(c, dict):
             raise rd.err(key, "a mapping {name, floor, output, column}", c)
-        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight"})
+        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit"})
         name = str(c.get("name", f"ch{i + 1}"))
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
         floor = rd.number(c, "floor", f"{key}.floor", required=True, positive=True, integer=True)
+        w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
+        if records:
+            q = rd.choice(c, "quantity", f"{key}.quantity",
+                          ("acceleration", "displacement", "velocity"), None)
+            ground = inp["quantity"] == "ground_acceleration"
+            output = _QUANTITY_OUTPUT.get(q, "absolute_accelerance" if ground else "accelerance")
+            out.append(ChannelConfig(name=name, floor=floor, output=output,
+                                     column=str(c.get("column", name)), weight=w, quantity=q,
+                                     unit=c.get("unit")))
+            continue
         output = rd.choice(c, "output", f"{key}.output", OUTPUTS, None)
         col = rd.number(c, "column", f"{key}.column", i, integer=True)
         if col < 0:
             raise rd.err(f"{key}.column", "a column index >= 0", col)
-        w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w))
-    return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out))
+    est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
+    nperseg = d.get("nperseg")
+    if nperseg not in (None, "all"):
+        nperseg = rd.number(d, "nperseg", "data.nperseg", positive=True, integer=True)
+    overlap = rd.number(d, "overlap", "data.overlap", 0.5)
+    if not 0 <= overlap < 1:
+        raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
+    return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
+                      input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
+                      window=str(d.get("window", "hann")), validation_file=val)
+
+
+def _updates_and_verification(rd, raw, cfg):
+    from dataclasses import replace
+    names = [c.name for c in cfg.data.channels]
+    ups = rd.mapping(raw, "updates")
+    updates = {}
+    for label, chans in ups.items():
+        if not isinstance(chans, list) or not chans:
+            raise rd.err(f"updates.{label}", "a list of channel names", chans)
+        for c in chans:
+            if c not in names:
+                raise rd.err(f"updates.{label}", f"channel names from data.channels {names}", c)
+        updates[str(label)] = tuple(chans)
+    ver = rd.mapping(raw, "verification")
+    rd.check_keys(ver, "verification", {"closeup_seconds"})
+    close = rd.number(ver, "closeup_seconds", "verification.closeup_seconds", 3.0, positive=True)
+    if cfg.data.type == "time_histories":
+        inp = cfg.data.input
+        ex = ExcitationConfig("ground") if inp["quantity"] == "ground_acceleration" \
+            else ExcitationConfig("force", inp["floor"])
+        if "excitation" in raw and ex != cfg.excitation:
+            raise rd.err("excitation", f"the excitation of data.input ({ex.type}) or no "
+                         "excitation section", raw["excitation"])
+        cfg = replace(cfg, excitation=ex)
+    return replace(cfg, updates=updates, closeup_seconds=close)
 
 
 def _frequencies(rd, d):
     rd.check_keys(d, "frequencies", {"method", "k", "bands", "points", "fmin", "fmax",
-                                     "n_peaks", "min_points_per_peak"})
+                                     "n_peaks", "min_points_per_peak", "min_coherence"})
     method = rd.choice(d, "method", "frequencies.method", ("half_power", "bands", "points", "all"),
                        "half_power")
     out = dict(method=method)
@@ -368,6 +449,9 @@ def _frequencies(rd, d):
     out["min_points_per_peak"] = rd.number(d, "min_points_per_peak",
                                            "frequencies.min_points_per_peak", 5, positive=True,
                                            integer=True)
+    out["min_coherence"] = rd.number(d, "min_coherence", "frequencies.min_coherence")
+    if out["min_coherence"] is not None and not 0 <= out["min_coherence"] <= 1:
+        raise rd.err("frequencies.min_coherence", "a value in [0, 1]", out["min_coherence"])
     if method == "bands":
         bands = d.get("bands")
         if not isinstance(bands, list) or not bands:

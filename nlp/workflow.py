@@ -1,0 +1,147 @@
+"""One run of a case: updates, their average, verification and the report.
+
+A case updates the model once, or once per group of channels (``updates:``,
+e.g. accelerances and receptances separately, as in Table 1) and averages the
+updated matrices. The final model is then checked against the data: FDAC of
+every channel, the held-out test file when the case names one, and the
+measured input replayed in the time domain when the data are records.
+"""
+
+import os
+import time
+
+import numpy as np
+
+from .case import assemble, build_problem
+from .frf import channel_frfs, modal_parameters
+from .freqsel import plot_selection
+from .metrics import fdac, fdac_overall
+from .plots import plot_frf_overlays
+from .report import write_report
+from .results import parameters_table, summarize, write_atomic, write_json
+from .search import SearchConfig, scatter_search
+from .verify import plot_replay, replay
+
+__all__ = ["run"]
+
+
+def _update(cfg, label, channels, out, log):
+    case = assemble(cfg, channels=channels)
+    tag = f"[{label}] " if label else ""
+    log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
+        f"{len(case.channels)} channels x {case.selected.size} frequency points "
+        f"({case.f[case.selected].min():.3g}-{case.f[case.selected].max():.3g} Hz), "
+        f"residual {cfg.objective.residual}, solver {cfg.solver.name}")
+    t0 = time.perf_counter()
+    problem = build_problem(case)
+    log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s "
+        f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
+    s = cfg.search
+    search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
+                                                  seed=s.seed, workers=s.workers))
+    result = summarize(case, problem, search)
+    os.makedirs(out, exist_ok=True)
+    write_json(os.path.join(out, "result.json"), result)
+    table = parameters_table(result)
+    write_atomic(os.path.join(out, "parameters.csv"), table)
+    mats = result["matrices"]
+    plot_frf_overlays(out, case, tuple(np.asarray(mats["initial"][k]) for k in "MKC"),
+                      tuple(np.asarray(mats["updated"][k]) for k in "MKC"))
+    shown = case.f <= 1.5 * case.f[case.selected].max()
+    plot_selection(case.f[shown], case.H[:, shown], case.selected,
+                   os.path.join(out, "selection.png"), channel_names=[c.name for c in case.channels])
+    _log_result(result, table, log, tag)
+    return case, result, search.interrupted
+
+
+def _log_result(result, table, log, tag):
+    srch = result["search"]
+    log(f"{tag}search: {srch['starts_finished']}/{srch['starts_requested']} local solves in "
+        f"{srch['seconds']:.2f} s; {srch['starts_within_1pct_of_best']} within 1 % of the best"
+        + ("  (INTERRUPTED: partial result)" if srch["interrupted"] else ""))
+    obj = result["objective"]
+    log(f"{tag}objective: {obj['initial']:.4g} -> {obj['updated']:.4g}  "
+        f"(best start: {result['solver']['status']}, {result['solver']['iterations']} iterations)")
+    for line in table.strip().splitlines()[:4]:
+        log("  " + line.replace(",", "\t"))
+    for wk in result["identifiability"]["weak_directions"]:
+        log(f"{tag}warning: weakly identified combination {wk['combination']} "
+            f"(sigma ratio {wk['sigma_ratio']:.1e})")
+
+
+def _fdac_of(model, case):
+    M, K, C = model
+    tg = case.target
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    per = dict(zip([c.name for c in case.channels], fdac(Ha, tg.H).tolist()))
+    return per, float(fdac_overall(Ha, tg.H))
+
+
+def _table1(results, average):
+    """Table 1: a column per mass and stiffness, a row per update and the average."""
+    first = next(iter(results.values()))[1]
+    cols = [p for p in first["parameters"] if p["group"] in ("mass", "stiffness")]
+    cols.sort(key=lambda p: p["group"] != "mass")
+    lines = [",".join(["Parameter (kg or N/m)"] + [p["name"] for p in cols]),
+             ",".join(["Initial"] + [f"{p['initial']:.6g}" for p in cols])]
+    for label, (_, res) in results.items():
+        upd = {p["name"]: p["updated"] for p in res["parameters"]}
+        lines.append(",".join([f"Updated ({label})"] + [f"{upd[p['name']]:.6g}" for p in cols]))
+    lines.append(",".join(["Average of the updated"] + [f"{average[p['name']]:.6g}" for p in cols]))
+    return "\n".join(lines) + "\n"
+
+
+def run(cfg, out, log=print):
+    """Run a validated case into folder ``out``; returns the exit status (0 or 130)."""
+    groups = cfg.updates or {None: None}
+    results = {}
+    interrupted = False
+    for label, channels in groups.items():
+        d = out if label is None else os.path.join(out, label)
+        case, result, interrupted = _update(cfg, label, channels, d, log)
+        results[label] = (case, result)
+        if interrupted:
+            break
+    mats = [r["matrices"]["updated"] for _, r in results.values()]
+    model = tuple(np.mean([np.asarray(m[k]) for m in mats], axis=0) for k in "MKC")
+    M, K, C = model
+    fn, zeta, _ = modal_parameters(M, C, K)
+    summary = {"case": cfg.name, "updates": [k for k in results if k is not None],
+               "interrupted": interrupted,
+               "model": {"M": M, "K": K, "C": C, "natural_frequencies_hz": fn,
+                         "damping_ratios": zeta},
+               "fdac": {}, "fdac_overall": {}}
+    for label, (case, _) in results.items():
+        per, overall = _fdac_of(model, case)
+        summary["fdac"].update(per)
+        summary["fdac_overall"][label or "all"] = overall
+    if len(results) > 1:
+        avg = {}
+        for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
+            avg[name] = float(np.mean([{p["name"]: p["updated"] for p in r["parameters"]}[name]
+                                       for _, r in results.values()]))
+        summary["average_parameters"] = avg
+        write_atomic(os.path.join(out, "table1.csv"), _table1(results, avg))
+    log("final model: " + ", ".join(f"{f:.3f} Hz ({100 * z:.2f} %)" for f, z in zip(fn, zeta)))
+    log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
+    if cfg.data.validation_file:
+        vcase = assemble(cfg, data_file=cfg.data.validation_file)
+        per, overall = _fdac_of(model, vcase)
+        summary["validation"] = {"file": cfg.data.validation_file, "fdac": per,
+                                 "fdac_overall": overall}
+        log(f"held-out test {os.path.basename(cfg.data.validation_file)}: FDAC "
+            + ", ".join(f"{k} {v:.4f}" for k, v in per.items()))
+    records = next(iter(results.values()))[0].records
+    if records is not None:
+        reps = replay(M, C, K, records, cfg.data)
+        summary["time_domain"] = {}
+        for name, rep in reps.items():
+            plot_replay(out, name, rep, cfg.closeup_seconds)
+            summary["time_domain"][name] = {k: rep[k] for k in ("quantity", "nrmse", "correlation",
+                                                               "peak_error")}
+        log("time domain NRMSE: " + ", ".join(f"{k} {100 * v['nrmse']:.1f} %"
+                                             for k, v in summary["time_domain"].items()))
+    write_json(os.path.join(out, "summary.json"), summary)
+    path = write_report(out)
+    log(f"wrote {out}: summary.json, result.json, parameters.csv, figures, {os.path.basename(path)}")
+    return 130 if interrupted else 0
