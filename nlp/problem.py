@@ -13,8 +13,10 @@ each selected frequency. Residual forms (per channel c, frequency k, weight w):
     complex         r = w [Re, Im] (H_a - H_x) / |H_x|
 
 How it is built (measured, see DEVELOPERS.md fact 3): the residuals of one
-frequency and their Jacobian are an SX function of (z, w, data), compiled to C
-once and mapped over the frequency grid. IPOPT and sqpmethod receive the
+frequency and their Jacobian are an SX function of (z, w, data), mapped over
+the frequency grid; the objective, gradient and Hessian functions are
+generated as one C file (the per-frequency code once, the maps as loops),
+compiled once and cached. IPOPT and sqpmethod receive the
 gradient J^T r and the Gauss-Newton Hessian J^T J of the least-squares
 objective. Everything that changes between solves (start point, data, bounds)
 enters as numbers; nothing symbolic is rebuilt per start.
@@ -36,12 +38,14 @@ RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
 
 _DEFAULT_OPTIONS = {
-    "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-10,
-              "ipopt.acceptable_tol": 1e-8, "ipopt.max_iter": 500, "print_time": False},
+    "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-8,
+              "ipopt.acceptable_tol": 1e-6, "ipopt.mu_strategy": "adaptive",
+              "ipopt.max_iter": 500, "print_time": False},
     "sqpmethod": {"qpsol": "qrqp", "qpsol_options": {"print_iter": False, "print_header": False,
                                                      "print_info": False, "error_on_fail": False},
                   "print_header": False, "print_iteration": False, "print_status": False,
-                  "max_iter": 200, "tol_du": 1e-10, "tol_pr": 1e-10, "min_step_size": 1e-14,
+                  "max_iter": 200, "max_iter_ls": 20, "tol_du": 1e-10, "tol_pr": 1e-10,
+                  "min_step_size": 1e-14,
                   "print_time": False, "error_on_fail": False},
 }
 
@@ -176,13 +180,6 @@ class UpdatingProblem:
         resjac_fn = ca.Function("frf_resjac", args, [r, ca.jacobian(r, z).T], names, ["r", "JT"])
         self.n_res = r.shape[0]
         self._res_fn, self._resjac_fn = res_fn, resjac_fn
-        self.compiled = False
-        if self.solver_config.compile:
-            lib = compile_library([res_fn, res_fn.jacobian(), resjac_fn], stem=f"frfnlp_n{M.shape[0]}")
-            if lib is not None:
-                self._res_fn = ca.external("frf_res", lib)
-                self._resjac_fn = ca.external("frf_resjac", lib)
-                self.compiled = True
 
     def _pack_data(self, target):
         H = np.asarray(target.H, dtype=complex)
@@ -216,7 +213,6 @@ class UpdatingProblem:
         p = ca.MX.sym("p", self._p.size)
         data = self._unpack(p)
         R = self._res_fn.map(N, "serial")(x, *data)
-        f = 0.5 * ca.sumsqr(R)
         R2, JT = self._resjac_fn.map(N, "serial")(x, *data)
         rv = ca.vec(R2)
         grad = ca.mtimes(JT, rv)
@@ -225,22 +221,34 @@ class UpdatingProblem:
         M, _, _ = self.matrices_fn(x)
         g = ca.sum1(ca.sum2(M)) - self.total_mass if self.total_mass is not None else ca.MX(0, 1)
         lam_g = ca.MX.sym("lam_g", g.shape[0])
-        jac_g = ca.jacobian(g, x)
-        self.obj_fn = ca.Function("objective", [x, p], [f])
-        self.resjac_fn = ca.Function("residuals", [x, p], [rv, JT.T])
-        opts = self.solver_config.nlpsol_options()
+        obj = ca.Function("objective", [x, p], [0.5 * ca.sumsqr(R)], ["x", "p"], ["f"])
+        fns = [obj, obj.jacobian(),
+               ca.Function("residuals", [x, p], [rv, JT.T], ["x", "p"], ["r", "J"])]
         if self.solver_config.name == "ipopt":
-            opts["grad_f"] = ca.Function("grad_f", [x, p], [0.5 * ca.sumsqr(rv), grad],
-                                         ["x", "p"], ["f", "grad"])
-            opts["hess_lag"] = ca.Function("hess_lag", [x, p, lam_f, lam_g],
-                                           [ca.triu(lam_f * gn)],
-                                           ["x", "p", "lam_f", "lam_g"], ["hess"])
+            fns += [ca.Function("grad_f", [x, p], [0.5 * ca.sumsqr(rv), grad],
+                                ["x", "p"], ["f", "grad"]),
+                    ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.triu(lam_f * gn)],
+                                ["x", "p", "lam_f", "lam_g"], ["hess"])]
         else:
-            opts["jac_fg"] = ca.Function("jac_fg", [x, p], [0.5 * ca.sumsqr(rv), grad, g, jac_g],
-                                         ["x", "p"], ["f", "grad", "g", "jac_g"])
-            opts["hess_lag"] = ca.Function("hess_lag", [x, p, lam_f, lam_g], [lam_f * gn],
-                                           ["x", "p", "lam_f", "lam_g"], ["hess"])
-        nlp = {"x": x, "p": p, "f": f, "g": g}
+            fns += [ca.Function("jac_fg", [x, p], [0.5 * ca.sumsqr(rv), grad, g, ca.jacobian(g, x)],
+                                ["x", "p"], ["f", "grad", "g", "jac_g"]),
+                    ca.Function("hess_lag", [x, p, lam_f, lam_g], [lam_f * gn],
+                                ["x", "p", "lam_f", "lam_g"], ["hess"])]
+        self.compiled = False
+        if self.solver_config.compile:
+            # One C file: the per-frequency SX code once, the maps as C loops.
+            lib = compile_library(fns, stem=f"frfnlp_n{self.model.n}_N{N}")
+            if lib is not None:
+                # "objective" finds its derivative "jac_objective" in the library
+                fns = [ca.external(f.name(), lib) for f in fns if f.name() != "jac_objective"]
+                self.compiled = True
+        named = {f.name(): f for f in fns}
+        self.obj_fn, self.resjac_fn = named["objective"], named["residuals"]
+        opts = self.solver_config.nlpsol_options()
+        for key in ("grad_f", "jac_fg", "hess_lag"):
+            if key in named:
+                opts[key] = named[key]
+        nlp = {"x": x, "p": p, "f": self.obj_fn(x, p), "g": g}
         self._solver = ca.nlpsol("updater", self.solver_config.name, nlp, opts)
         self.ng = g.shape[0]
         self._batch = {}
