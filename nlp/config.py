@@ -82,6 +82,7 @@ class DataConfig:
     overlap: float = 0.5
     window: str = "hann"
     validation_file: str = None            # another test of the same structure (held out)
+    validation_force_floor: int = None     # its shaker floor, when it differs (force input)
 
 
 @dataclass(frozen=True)
@@ -339,7 +340,8 @@ _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
-                              "estimator", "nperseg", "overlap", "window", "validation_file"})
+                              "estimator", "nperseg", "overlap", "window", "validation_file",
+                              "validation_force_floor"})
     kind = rd.choice(d, "type", "data.type", ("frf", "time_histories"), "frf")
     records = kind == "time_histories"
     if "file" not in d:
@@ -403,9 +405,12 @@ def _data(rd, d, base):
     overlap = rd.number(d, "overlap", "data.overlap", 0.5)
     if not 0 <= overlap < 1:
         raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
+    vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
+                       positive=True, integer=True)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
-                      window=str(d.get("window", "hann")), validation_file=val)
+                      window=str(d.get("window", "hann")), validation_file=val,
+                      validation_force_floor=vfloor)
 
 
 def _updates_and_verification(rd, raw, cfg):

@@ -177,9 +177,15 @@ class UpdatingProblem:
         args = [z, w, yr, yi, s, wt]
         names = ["z", "w", "yr", "yi", "s", "wt"]
         res_fn = ca.Function("frf_res", args, [r], names, ["r"])
-        resjac_fn = ca.Function("frf_resjac", args, [r, ca.jacobian(r, z).T], names, ["r", "JT"])
+        JT = ca.jacobian(r, z).T
+        resjac_fn = ca.Function("frf_resjac", args, [r, JT], names, ["r", "JT"])
+        # per-frequency terms of f, J^T r and triu(J^T J), summed over frequencies by the map
+        fg_fn = ca.Function("frf_fg", args, [0.5 * ca.sumsqr(r), ca.mtimes(JT, r)], names,
+                            ["f", "g"])
+        gn_fn = ca.Function("frf_gn", args, [ca.triu(ca.mtimes(JT, JT.T))], names, ["H"])
         self.n_res = r.shape[0]
         self._res_fn, self._resjac_fn = res_fn, resjac_fn
+        self._fg_fn, self._gn_fn = fg_fn, gn_fn
 
     def _pack_data(self, target):
         H = np.asarray(target.H, dtype=complex)
@@ -215,8 +221,9 @@ class UpdatingProblem:
         R = self._res_fn.map(N, "serial")(x, *data)
         R2, JT = self._resjac_fn.map(N, "serial")(x, *data)
         rv = ca.vec(R2)
-        grad = ca.mtimes(JT, rv)
-        gn = ca.mtimes(JT, JT.T)  # Gauss-Newton Hessian J^T J
+        # f, gradient J^T r and Gauss-Newton Hessian J^T J, summed inside the maps
+        fk, grad = self._fg_fn.map("fg_sum", "serial", N, [0], [0, 1])(x, *data)
+        gn_triu = self._gn_fn.map("gn_sum", "serial", N, [0], [0])(x, *data)
         lam_f = ca.MX.sym("lam_f")
         M, _, _ = self.matrices_fn(x)
         g = ca.sum1(ca.sum2(M)) - self.total_mass if self.total_mass is not None else ca.MX(0, 1)
@@ -225,12 +232,13 @@ class UpdatingProblem:
         fns = [obj, obj.jacobian(),
                ca.Function("residuals", [x, p], [rv, JT.T], ["x", "p"], ["r", "J"])]
         if self.solver_config.name == "ipopt":
-            fns += [ca.Function("grad_f", [x, p], [0.5 * ca.sumsqr(rv), grad],
+            fns += [ca.Function("grad_f", [x, p], [fk, grad],
                                 ["x", "p"], ["f", "grad"]),
-                    ca.Function("hess_lag", [x, p, lam_f, lam_g], [ca.triu(lam_f * gn)],
+                    ca.Function("hess_lag", [x, p, lam_f, lam_g], [lam_f * gn_triu],
                                 ["x", "p", "lam_f", "lam_g"], ["hess"])]
         else:
-            fns += [ca.Function("jac_fg", [x, p], [0.5 * ca.sumsqr(rv), grad, g, ca.jacobian(g, x)],
+            gn = gn_triu + gn_triu.T - ca.diag(ca.diag(gn_triu))
+            fns += [ca.Function("jac_fg", [x, p], [fk, grad, g, ca.jacobian(g, x)],
                                 ["x", "p"], ["f", "grad", "g", "jac_g"]),
                     ca.Function("hess_lag", [x, p, lam_f, lam_g], [lam_f * gn],
                                 ["x", "p", "lam_f", "lam_g"], ["hess"])]

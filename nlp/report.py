@@ -93,6 +93,8 @@ def write_report(out):
         v = s["validation"]
         parts.append(f"<h2>Held-out test: {html.escape(os.path.basename(v['file']))}</h2>")
         parts.append(_table(["channel", "FDAC"], [[k, x] for k, x in v["fdac"].items()]))
+        for png in sorted(glob.glob(os.path.join(out, "validation", "*.png"))):
+            parts.append(f'<img src="validation/{html.escape(os.path.basename(png))}">')
     if "time_domain" in s:
         parts.append("<h2>Time-domain verification (measured input replayed)</h2>")
         parts.append(_table(["channel", "quantity", "NRMSE", "correlation", "peak error"],

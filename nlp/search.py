@@ -157,8 +157,11 @@ def scatter_search(problem, config=SearchConfig(), progress=None):
     if not results:
         raise KeyboardInterrupt("interrupted before any local solve finished")
     ordered = [results[i] for i in sorted(results)]
-    ok = [r for r in ordered if r.success] or ordered
-    best = min(ok, key=lambda r: r.f)  # min keeps the lowest start index on ties
+    # The lowest objective wins even if its solver stopped on an iteration limit:
+    # every f is a true evaluation at a point inside the bounds, and a slow
+    # crawl along a weakly identified valley must not lose to a worse "success".
+    finite = [r for r in ordered if np.isfinite(r.f)] or ordered
+    best = min(finite, key=lambda r: r.f)  # min keeps the lowest start index on ties
     return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(items),
                         interrupted=interrupted, seconds=time.perf_counter() - t0)
 

@@ -7,12 +7,14 @@ every channel, the held-out test file when the case names one, and the
 measured input replayed in the time domain when the data are records.
 """
 
+from dataclasses import replace
 import os
 import time
 
 import numpy as np
 
 from .case import assemble, build_problem
+from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
 from .freqsel import plot_selection
 from .metrics import fdac, fdac_overall
@@ -125,10 +127,21 @@ def run(cfg, out, log=print):
     log("final model: " + ", ".join(f"{f:.3f} Hz ({100 * z:.2f} %)" for f, z in zip(fn, zeta)))
     log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
     if cfg.data.validation_file:
-        vcase = assemble(cfg, data_file=cfg.data.validation_file)
+        vcfg = cfg
+        if cfg.data.validation_force_floor is not None:
+            vcfg = replace(cfg, excitation=ExcitationConfig("force", cfg.data.validation_force_floor))
+        vcase = assemble(vcfg, data_file=cfg.data.validation_file)
         per, overall = _fdac_of(model, vcase)
         summary["validation"] = {"file": cfg.data.validation_file, "fdac": per,
-                                 "fdac_overall": overall}
+                                 "fdac_overall": overall,
+                                 "excitation": {"type": vcase.target.excitation,
+                                                "floor": None if vcase.target.force_dof is None
+                                                else vcase.target.force_dof + 1},
+                                 "frequencies_hz": (vcase.target.omega / (2 * np.pi))}
+        vdir = os.path.join(out, "validation")
+        os.makedirs(vdir, exist_ok=True)
+        first = next(iter(results.values()))[1]["matrices"]["initial"]
+        plot_frf_overlays(vdir, vcase, tuple(np.asarray(first[k]) for k in "MKC"), model)
         log(f"held-out test {os.path.basename(cfg.data.validation_file)}: FDAC "
             + ", ".join(f"{k} {v:.4f}" for k, v in per.items()))
     records = next(iter(results.values()))[0].records
