@@ -198,11 +198,23 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
     elif fc.method == "points":
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
-        idx = select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
-                                 coherence=coherence, min_coherence=fc.min_coherence,
-                                 bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
-                                 min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
-                                 fmax=fc.fmax)
+        try:
+            idx = _half_power(cfg, f, H, channels, excitation, coherence)
+        except InputError as exc:  # freqsel names its argument; say which case key it is
+            raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
+    return _nonempty(cfg, f, idx)
+
+
+def _half_power(cfg, f, H, channels, excitation, coherence):
+    fc = cfg.frequencies
+    return select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
+                              coherence=coherence, min_coherence=fc.min_coherence,
+                              bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
+                              min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
+                              fmax=fc.fmax)
+
+
+def _nonempty(cfg, f, idx):
     idx = np.asarray(idx, int)
     idx = idx[f[idx] > 0]
     if idx.size == 0:

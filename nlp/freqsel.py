@@ -5,6 +5,8 @@ damping information, so the updating uses the peak areas only: the
 half-power band of each resonance, widened by a factor ``k``.
 """
 
+import os
+
 import numpy as np
 from scipy import signal
 
@@ -326,5 +328,7 @@ def plot_selection(f, H, idx, path, channel_names=None):
     ax.set_title(f"Selected frequency points ({idx.size})")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
-    fig.savefig(path, dpi=120)
+    tmp = os.path.join(os.path.dirname(str(path)) or ".", ".tmp-" + os.path.basename(str(path)))
+    fig.savefig(tmp, dpi=120, format="png")
+    os.replace(tmp, path)  # atomic
     return path

@@ -10,7 +10,16 @@ import numpy as np  # noqa: E402
 
 from .frf import channel_frfs  # noqa: E402
 
-__all__ = ["plot_frf_overlays"]
+__all__ = ["plot_frf_overlays", "save_figure"]
+
+
+def save_figure(fig, path, dpi=110):
+    """Write a figure atomically (temporary file, then rename) and close it."""
+    tmp = os.path.join(os.path.dirname(path) or ".", ".tmp-" + os.path.basename(path))
+    fig.savefig(tmp, dpi=dpi, format="png")
+    os.replace(tmp, path)
+    plt.close(fig)
+    return path
 
 
 def _db(H):
@@ -53,10 +62,5 @@ def plot_frf_overlays(out_dir, case, initial, updated):
         a2.set_yticks([-180, -90, 0, 90, 180])
         a2.grid(alpha=0.3)
         fig.tight_layout()
-        path = os.path.join(out_dir, f"frf_{ch.name}.png")
-        tmp = os.path.join(out_dir, f".tmp-frf_{ch.name}.png")
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-        plt.close(fig)
-        paths.append(path)
+        paths.append(save_figure(fig, os.path.join(out_dir, f"frf_{ch.name}.png")))
     return paths

@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .metrics import correlation, nrmse, peak_error  # noqa: E402
+from .plots import save_figure  # noqa: E402
 from .simulate import simulate  # noqa: E402
 
 __all__ = ["replay", "plot_replay"]
@@ -66,9 +67,4 @@ def plot_replay(out_dir, name, rep, closeup_seconds=3.0):
     a2.set_xlabel("time [s]")
     a2.set_title(f"close-up: {closeup_seconds:g} s around the largest response", fontsize=9)
     fig.tight_layout()
-    path = os.path.join(out_dir, f"time_{name}.png")
-    tmp = os.path.join(out_dir, f".tmp-time_{name}.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, os.path.join(out_dir, f"time_{name}.png"))

@@ -34,6 +34,21 @@ def deep_update(d, u):
     return out
 
 
+def force_frf(output, f=None):
+    """Truth-model FRFs of all floors to a force at floor 1 (independent numpy solve)."""
+    from make_four_story import MASSES, STIFFNESSES, true_damping
+    from conftest import shear_K
+    f = np.arange(0.02, 8, 0.02) if f is None else f
+    M, K = np.diag(MASSES), shear_K(STIFFNESSES)
+    C = true_damping(M, K)
+    w = 2 * np.pi * f
+    H = np.array([np.linalg.solve(K - wk**2 * M + 1j * wk * C, np.eye(4)[0]) for wk in w]).T
+    H = H * {"receptance": 1, "accelerance": -(w**2)}[output]
+    chans = [{"name": f"{output[0]}{i + 1}", "floor": i + 1, "output": output, "column": i}
+             for i in range(4)]
+    return f, H, chans
+
+
 def write_case(folder, noise=0.0, seed=0, H=None, f=None, **changes):
     """Write frf.npz and case.yaml in folder; returns (case path, truth)."""
     os.makedirs(folder, exist_ok=True)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from helpers_case import force_frf, write_case
 from nlp.case import assemble, build_problem
 from nlp.config import load_case
 from nlp.errors import InputError
@@ -45,14 +45,7 @@ def test_null_space_is_real_and_seen_by_the_jacobian(tmp_path):
 
 
 def test_force_input_has_no_null_space(tmp_path):
-    from make_four_story import MASSES, STIFFNESSES, true_damping
-    from nlp.frf import frf_dynamic_stiffness
-    from conftest import shear_K
-    f = np.arange(0.02, 8, 0.02)
-    M, K = np.diag(MASSES), shear_K(STIFFNESSES)
-    H = frf_dynamic_stiffness(M, true_damping(M, K), K, 2 * np.pi * f, "force", 0, "receptance")
-    chans = [{"name": f"d{i + 1}", "floor": i + 1, "output": "receptance", "column": i}
-             for i in range(4)]
+    f, H, chans = force_frf("receptance")
     path, _ = write_case(str(tmp_path), H=H, f=f, parameters={"fixed": None},
                          excitation={"type": "force", "floor": 1},
                          data={"file": "frf.npz", "channels": chans})

@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from helpers_case import force_frf, write_case
 from nlp.case import assemble, build_problem
 from nlp.config import load_case
 
@@ -76,14 +76,7 @@ def test_total_mass_anchor(tmp_path):
 
 
 def test_force_input_recovers_all_masses_without_anchor(tmp_path):
-    from make_four_story import MASSES, STIFFNESSES, true_damping
-    from nlp.frf import frf_dynamic_stiffness
-    from conftest import shear_K
-    f = np.arange(0.02, 8, 0.02)
-    M, K = np.diag(MASSES), shear_K(STIFFNESSES)
-    H = frf_dynamic_stiffness(M, true_damping(M, K), K, 2 * np.pi * f, "force", 0, "accelerance")
-    chans = [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance", "column": i}
-             for i in range(4)]
+    f, H, chans = force_frf("accelerance")
     case, pr, truth = _problem(tmp_path, H=H, f=f, parameters={"fixed": None},
                                excitation={"type": "force", "floor": 1},
                                data={"file": "frf.npz", "channels": chans})
