@@ -12,7 +12,7 @@ from scipy import signal
 
 from nlp.errors import InputError
 
-__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection"]
+__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection", "peak_curve"]
 
 _SRC = "<arguments>"
 
@@ -177,7 +177,7 @@ def half_power_band(f, mag, i_peak):
     return _crossing(f, mag, i, level, -1), _crossing(f, mag, i, level, +1)
 
 
-def _peak_curve(f, H, i_peak):
+def peak_curve(f, H, i_peak):
     """The magnitude curve (a channel or the channel sum) that peaks at i_peak
     most sharply; the sum alone can show a weak mode only as a shoulder, and
     climbing that shoulder would measure the neighbouring mode instead."""
@@ -272,7 +272,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
                              "(lower it, widen fmin/fmax or give explicit bands)",
                              got=prominence_db)
         inside = np.flatnonzero(_window(f, fmin, fmax))
-        parts = [_peak_points(f, ip, half_power_band(f, _peak_curve(f, H, ip), ip), k,
+        parts = [_peak_points(f, ip, half_power_band(f, peak_curve(f, H, ip), ip), k,
                               int(min_points_per_peak)) for ip in peaks]
         idx = np.intersect1d(np.concatenate(parts), inside)
     if min_coherence is not None:

@@ -88,7 +88,14 @@ def write_report(out):
     parts.append("<h2>Final model</h2>")
     parts.append(_table(["mode", "f [Hz]", "zeta"], [[i + 1, f, z] for i, (f, z) in enumerate(
         zip(s["model"]["natural_frequencies_hz"], s["model"]["damping_ratios"]))]))
-    parts.append(_table(["channel", "FDAC"], [[k, v] for k, v in s["fdac"].items()]))
+    parts.append(_table(["channel", "FDAC", "FRAC"], [[k, v, s.get("frac", {}).get(k)]
+                                                     for k, v in s["fdac"].items()]))
+    for label, rows in s.get("modes", {}).items():
+        parts.append(f"<h3>Measured modes ({html.escape(label)}, peak picking) against the model</h3>")
+        parts.append(_table(["f measured [Hz]", "f model [Hz]", "error", "zeta measured",
+                             "zeta model", "MAC"],
+                            [[r["f_measured_hz"], r["f_model_hz"], r["frequency_error"],
+                              r["zeta_measured"], r["zeta_model"], r["mac"]] for r in rows]))
     if "validation" in s:
         v = s["validation"]
         parts.append(f"<h2>Held-out test: {html.escape(os.path.basename(v['file']))}</h2>")

@@ -13,11 +13,12 @@ import time
 
 import numpy as np
 
-from .case import assemble, build_problem
+from .case import _detection_form, assemble, build_problem
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
 from .freqsel import plot_selection
-from .metrics import fdac, fdac_overall
+from .metrics import fdac, fdac_overall, frac
+from .peakpick import compare_modes
 from .plots import plot_frf_overlays
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
@@ -79,6 +80,22 @@ def _fdac_of(model, case):
     return per, float(fdac_overall(Ha, tg.H))
 
 
+def _frac_of(model, case):
+    M, K, C = model
+    tg = case.target
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    return dict(zip([c.name for c in case.channels], frac(Ha, tg.H).tolist()))
+
+
+def _modes_of(model, case):
+    """Peak-picked modes of the measured FRFs against the model (frequency, damping, MAC)."""
+    M, K, C = model
+    fc = case.config.frequencies
+    det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
+    return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
+                         fmin=fc.fmin, fmax=fc.fmax)
+
+
 def _table1(results, average):
     """Table 1: a column per mass and stiffness, a row per update and the average."""
     first = next(iter(results.values()))[1]
@@ -112,11 +129,13 @@ def run(cfg, out, log=print):
                "interrupted": interrupted,
                "model": {"M": M, "K": K, "C": C, "natural_frequencies_hz": fn,
                          "damping_ratios": zeta},
-               "fdac": {}, "fdac_overall": {}}
+               "fdac": {}, "fdac_overall": {}, "frac": {}, "modes": {}}
     for label, (case, _) in results.items():
         per, overall = _fdac_of(model, case)
         summary["fdac"].update(per)
         summary["fdac_overall"][label or "all"] = overall
+        summary["frac"].update(_frac_of(model, case))
+        summary["modes"][label or "all"] = _modes_of(model, case)
     if len(results) > 1:
         avg = {}
         for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
@@ -126,6 +145,10 @@ def run(cfg, out, log=print):
         write_atomic(os.path.join(out, "table1.csv"), _table1(results, avg))
     log("final model: " + ", ".join(f"{f:.3f} Hz ({100 * z:.2f} %)" for f, z in zip(fn, zeta)))
     log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
+    for label, rows in summary["modes"].items():
+        log(f"measured modes ({label}, peak picking) vs model: " + "; ".join(
+            f"{r['f_measured_hz']:.3f} Hz {100 * r['frequency_error']:+.2f} %, MAC {r['mac']:.3f}"
+            for r in rows))
     if cfg.data.validation_file:
         vcfg = cfg
         if cfg.data.validation_force_floor is not None:
