@@ -83,3 +83,13 @@ def test_force_input_recovers_all_masses_without_anchor(tmp_path):
     res = pr.solve()
     m_err, k_err, c_err = _errors(case, pr, res.z, truth)
     assert m_err < 1e-3 and k_err < 1e-3, (m_err, k_err)
+
+
+def test_uncompiled_path_gives_the_same_numbers(tmp_path):
+    case, pr, _ = _problem(tmp_path / "c", noise=0.02)
+    _, pr_vm, _ = _problem(tmp_path / "v", noise=0.02, solver={"name": "ipopt", "compile": False})
+    assert pr.compiled and not pr_vm.compiled
+    z = pr.z0 + 0.01
+    np.testing.assert_allclose(pr.residuals(z)[1], pr_vm.residuals(z)[1], rtol=1e-10, atol=1e-12)
+    a, b = pr.solve(), pr_vm.solve()
+    np.testing.assert_allclose(a.z, b.z, rtol=1e-6, atol=1e-8)
