@@ -49,14 +49,17 @@ def complex_solve(Zr, Zi, br, bi):
     return ca.vertcat(*xr), ca.vertcat(*xi)
 
 
-def frf_symbolic(M, C, K, w, b, output="receptance"):
+def frf_symbolic(M, C, K, w, b, output="receptance", Kh=None):
     """Real and imaginary parts of the FRF of every DOF at circular frequency w.
 
     M, C, K are SX matrices, b the load vector (-M 1 for ground input, e_k for
-    a force), output as in :mod:`nlp.frf`. Returns (Hr, Hi), SX column vectors.
+    a force), output as in :mod:`nlp.frf`; Kh an optional hysteretic
+    (frequency-independent) damping matrix, Z = K - w^2 M + j (w C + Kh).
+    Returns (Hr, Hi), SX column vectors.
     """
     n = M.shape[0]
-    hr, hi = complex_solve(K - w**2 * M, w * C, b, ca.SX.zeros(n))
+    Zi = w * C if Kh is None else w * C + Kh
+    hr, hi = complex_solve(K - w**2 * M, Zi, b, ca.SX.zeros(n))
     p = _POWER[output]
     if p == 1:  # jw H
         hr, hi = -w * hi, w * hr

@@ -94,10 +94,19 @@ class ParameterSet:
         """Parameter indices behind each decision variable."""
         return self._groups
 
+    @property
+    def n_physics(self):
+        """Parameters of added physics (group "physics"), kept last."""
+        return sum(p.group == "physics" for p in self.params)
+
     def slices(self):
         """Index ranges of alpha, beta and damping inside theta."""
         a, b = self.n_alpha, self.n_alpha + self.n_beta
-        return slice(0, a), slice(a, b), slice(b, self.n_theta)
+        return slice(0, a), slice(a, b), slice(b, self.n_theta - self.n_physics)
+
+    def physics_slice(self):
+        """Index range of the added-physics parameters inside theta."""
+        return slice(self.n_theta - self.n_physics, self.n_theta)
 
     # --- the affine map theta = T z + c ---------------------------------
     @property

@@ -124,10 +124,13 @@ class UpdatingProblem:
     solver : SolverConfig
     total_mass : float, optional
         Anchor 1^T M 1 = total_mass [kg] (an equality constraint).
+    enrichments : sequence of :mod:`nlp.physics` families
+        Added physics; their parameters are the last ("physics") entries of
+        ``params``, in the same order. refs : reference values they scale by.
     """
 
     def __init__(self, model, damping, params, target, residual="log_magnitude",
-                 solver=SolverConfig(), total_mass=None):
+                 solver=SolverConfig(), total_mass=None, enrichments=(), refs=None):
         if residual not in RESIDUALS:
             raise ValueError(f"residual must be one of {RESIDUALS}, got {residual!r}")
         if solver.name not in SOLVERS:
@@ -135,18 +138,34 @@ class UpdatingProblem:
         self.model, self.damping, self.params = model, damping, params
         self.target, self.residual, self.solver_config = target, residual, solver
         self.total_mass = total_mass
+        self.enrichments, self.refs = tuple(enrichments), dict(refs or {})
         self._build_symbolic()
         self._p = self._pack_data(target)
         self._build_nlp()
 
     # ------------------------------------------------------------------ build
     def _model_matrices(self, z):
+        """Base M, K, C and the full system (with added physics) as SX."""
         theta = ca.mtimes(ca.DM(self.params.T), z) + ca.DM(self.params.c)
         sa, sb, sd = self.params.slices()
         M, K = self.model.matrices(theta[sa], theta[sb])
         M, K = ca.SX(M), ca.SX(K)
-        C = self.damping.matrix(theta[sd], M, K)
-        return M, K, ca.SX(C)
+        C = ca.SX(self.damping.matrix(theta[sd], M, K))
+        n = self.model.n
+        system = {"M": M, "K": K, "C": C, "Kh": ca.SX.zeros(n, n)}
+        ref = {**self.refs, "K_parts": [(1 + theta[sa][r]) * ca.DM(Kr)
+                                        for r, Kr in enumerate(self.model.K_infl)]}
+        th = theta[self.params.physics_slice()]
+        k = 0
+        self._sensor = {}
+        for e in self.enrichments:
+            th_e = th[k:k + len(e.names)]
+            k += len(e.names)
+            if hasattr(e, "apply"):
+                system = e.apply(system, th_e, ref)
+            else:
+                self._sensor.setdefault(e.channel, []).append((e, th_e))
+        return M, K, C, system
 
     def _build_symbolic(self):
         nz = self.params.n_z
@@ -154,19 +173,26 @@ class UpdatingProblem:
         z = ca.SX.sym("z", nz)
         w = ca.SX.sym("w")
         yr, yi, s, wt = (ca.SX.sym(nm, n_ch) for nm in ("yr", "yi", "s", "wt"))
-        M, K, C = self._model_matrices(z)
+        M, K, C, system = self._model_matrices(z)
         self.matrices_fn = ca.Function("matrices", [z], [M, K, C], ["z"], ["M", "K", "C"])
+        Ma, Ka, Ca, Kh = (system[k] for k in ("M", "K", "C", "Kh"))
         if self.target.excitation == "ground":
-            b = -ca.mtimes(M, ca.DM.ones(M.shape[0]))
+            b = -ca.mtimes(Ma, ca.DM.ones(Ma.shape[0]))
         else:
-            b = ca.DM.zeros(M.shape[0])
+            b = ca.DM.zeros(Ma.shape[0])
             b[self.target.force_dof] = 1
+        kh = Kh if self.enrichments else None
         cache = {}
         res = []
+        out_r, out_i = [], []
         for c, ch in enumerate(self.target.channels):
             if ch.output not in cache:
-                cache[ch.output] = frf_symbolic(M, C, K, w, b, ch.output)
+                cache[ch.output] = frf_symbolic(Ma, Ca, Ka, w, b, ch.output, kh)
             hr, hi = cache[ch.output][0][ch.dof], cache[ch.output][1][ch.dof]
+            for e, th_e in self._sensor.get(ch.name, ()):
+                hr, hi = e.output(hr, hi, w, th_e)
+            out_r.append(hr)
+            out_i.append(hi)
             if self.residual == "log_magnitude":
                 res.append(wt[c] * 0.5 * (ca.log(hr**2 + hi**2) - ca.log(yr[c]**2 + yi[c]**2)))
             elif self.residual == "magnitude":
@@ -174,6 +200,8 @@ class UpdatingProblem:
             else:
                 res += [wt[c] * (hr - yr[c]) / s[c], wt[c] * (hi - yi[c]) / s[c]]
         r = ca.vertcat(*res)
+        self.frf_fn = ca.Function("channel_frf", [z, w], [ca.vertcat(*out_r), ca.vertcat(*out_i)],
+                                  ["z", "w"], ["Hr", "Hi"])
         args = [z, w, yr, yi, s, wt]
         names = ["z", "w", "yr", "yi", "s", "wt"]
         res_fn = ca.Function("frf_res", args, [r], names, ["r"])
@@ -294,6 +322,12 @@ class UpdatingProblem:
 
     def theta(self, z):
         return self.params.theta(np.asarray(z, float))
+
+    def channel_frfs(self, z, omega):
+        """The model's FRF of every channel (with added physics) at omega: (n_ch, N)."""
+        fn = self.frf_fn.map(len(omega))
+        Hr, Hi = fn(np.asarray(z, float), np.asarray(omega, float)[None, :])
+        return np.asarray(Hr) + 1j * np.asarray(Hi)
 
     def solve(self, z0=None):
         """One local solve from z0 (default: the case's initial point)."""
