@@ -19,6 +19,18 @@ def _run(args):
     return run(cfg, out)
 
 
+def _diagnose(args):
+    from .config import load_case
+    from .diagnose import diagnose
+
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
+                                "solver": None})
+    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "diagnosis"))
+    diagnose(cfg, out)
+    print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png")
+    return 0
+
+
 def _report(args):
     from .report import write_report
 
@@ -37,6 +49,11 @@ def _parser():
     run.add_argument("--seed", type=int, help="seed of the trial points")
     run.add_argument("--workers", type=int, help="worker processes")
     run.add_argument("--solver", help="ipopt or sqpmethod (overrides the case file)")
+    dg = sub.add_parser("diagnose", help="find what physics the model leaves out")
+    dg.add_argument("case", help="case YAML file")
+    dg.add_argument("--out", help="output folder (default: diagnosis/ beside the case file)")
+    dg.add_argument("--starts", type=int, help="baseline starts (a quarter are used)")
+    dg.add_argument("--seed", type=int, help="seed of the start points")
     rep = sub.add_parser("report", help="rebuild report.html of a finished run folder")
     rep.add_argument("dir", help="the run's output folder")
     return ap
@@ -45,7 +62,7 @@ def _parser():
 def main(argv=None):
     args = _parser().parse_args(argv)
     try:
-        return _run(args) if args.command == "run" else _report(args)
+        return {"run": _run, "diagnose": _diagnose, "report": _report}[args.command](args)
     except InputError as exc:
         print(f"frf-nlp: error: {exc}", file=sys.stderr)
         return 2

@@ -1,0 +1,345 @@
+"""Missing physics: locate the mismatch, name what the model left out, model it.
+
+``diagnose(cfg, out)`` runs, in order:
+
+1. the baseline update (the case's own model), with every residual divided by
+   its noise level, so the objective is a chi-square;
+2. a noise model: from the coherence of H1 when the FRFs were averaged,
+   Var(ln|H1|) = (1 - g^2) / (2 n_d g^2); otherwise from the scatter of second
+   differences of ln|H| along frequency (robust, per channel);
+3. a residual map (channel x band): mean squared normalised residual in each
+   fitted half-power window and in the held-out shoulders around it (points
+   1-3 windows from a peak, never fitted);
+4. a cheap ranking of every candidate family x location by a score test:
+   the baseline residual projected off the baseline Jacobian, onto the
+   candidate's Jacobian columns at its null value (expected chi-square drop);
+   candidates whose columns lie almost inside the baseline span are reported
+   as absorbed by the baseline parameters, not guessed at;
+5. a refit of the best few with the same NLP; a candidate is accepted when
+   BIC drops by at least 10, the held-out chi-square improves and its
+   parameters are inside their physical bounds;
+6. the verdict: adequate, missing_physics, or ambiguous (accepted candidates
+   that fit alike, or a mismatch none explains), with the measurement that
+   would separate them.
+"""
+
+from dataclasses import replace
+import math
+import os
+
+import numpy as np
+
+from .case import _half_power, assemble
+from .freqsel import find_peaks
+from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
+                      NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
+                      extend_parameters, references)
+from .problem import SolverConfig, Target, UpdatingProblem
+
+__all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS"]
+
+BIC_ACCEPT = 10.0      # "very strong" evidence (Kass & Raftery)
+BIC_TIE = 6.0          # accepted candidates closer than this cannot be told apart
+ABSORBED = 0.05        # fraction of a candidate's effect left after projection
+
+SUGGESTIONS = {
+    "added_mass": "weigh the floor, or repeat the test with a known added mass",
+    "base_flexibility": "a sensor on the base (table) to measure the base motion directly",
+    "secondary_oscillator": "a sensor on the suspected appendage, or a shaker at another floor",
+    "local_damper": "a second excitation level or a wider frequency band around the higher modes",
+    "hysteretic_damping": "FRFs over a wider frequency band (viscous and hysteretic loss differ "
+                          "in how damping grows with frequency)",
+    "nonadjacent_coupling": "a second shaker position (force at another floor)",
+    "sensor_gain": "a calibration check of that sensor, or a second sensor on the same floor",
+    "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
+}
+
+
+# ---------------------------------------------------------------------- noise
+def _n_averages(cfg, records):
+    d = cfg.data
+    if records is None or d.nperseg in (None, "all"):
+        n = records.t.size if records is not None else 0
+        nper = n if d.nperseg == "all" else max(2 ** int(math.log2(max(n // 8, 1))), 1)
+    else:
+        n, nper = records.t.size, int(d.nperseg)
+    if records is None:
+        return 1
+    step = max(nper - int(d.overlap * nper), 1)
+    return max((n - nper) // step + 1, 1)
+
+
+def noise_sigma(case, idx):
+    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx))."""
+    n_ch = case.H.shape[0]
+    if case.coherence is not None:
+        nd = _n_averages(case.config, case.records)
+        if nd > 1:
+            g2 = np.clip(case.coherence[:, idx], 1e-4, 1 - 1e-12)
+            return np.sqrt((1 - g2) / (2 * nd * g2)) + 1e-4
+    lo, hi = case.f[idx].min(), case.f[idx].max()
+    band = (case.f >= lo) & (case.f <= hi)
+    sig = np.empty(n_ch)
+    for c in range(n_ch):
+        d2 = np.diff(np.log(np.abs(case.H[c, band]) + 1e-300), 2)
+        sig[c] = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6)
+    return np.repeat(np.maximum(sig, 1e-4)[:, None], len(idx), axis=1)
+
+
+# ------------------------------------------------------------------ problems
+def _target(case, idx, sigma):
+    tg = case.target
+    return Target(omega=2 * np.pi * case.f[idx], H=case.H[:, idx], weight=1.0 / sigma,
+                  channels=tg.channels, excitation=tg.excitation, force_dof=tg.force_dof)
+
+
+def _problem(case, target, enrichments=(), values=None, compile=True):
+    cfg = case.config
+    refs = references(case.model, case.damping.C0 if hasattr(case.damping, "C0")
+                      else np.eye(case.model.n))
+    params = extend_parameters(case.params, enrichments, refs, values)
+    solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), compile)
+    return UpdatingProblem(case.model, case.damping, params, target, residual="log_magnitude",
+                           solver=solver, total_mass=cfg.parameters.total_mass,
+                           enrichments=enrichments, refs=refs)
+
+
+def _normalised(problem, z, case, idx, sigma):
+    Ha = problem.channel_frfs(z, 2 * np.pi * case.f[idx])
+    return (np.log(np.abs(Ha)) - np.log(np.abs(case.H[:, idx]))) / sigma
+
+
+def _fit(problem, z0_list):
+    best = None
+    for z0 in z0_list:
+        r = problem.solve(z0)
+        if best is None or r.f < best.f:
+            best = r
+    return best
+
+
+# ---------------------------------------------------------------- candidates
+def candidates(case, extra_freqs=()):
+    """Every family x location that the data could reveal (sensor delay needs phase)."""
+    n = case.model.n
+    out = [AddedMass(i) for i in range(1, n + 1)]
+    out.append(BaseFlexibility())
+    for f0 in extra_freqs:
+        out += [SecondaryOscillator(i, float(f0)) for i in range(1, n + 1)]
+    out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
+    out += [HystereticDamping()] + [HystereticDamping(s) for s in range(1, n + 1)]
+    out += [NonadjacentCoupling(i, j) for i in range(1, n + 1) for j in range(i + 2, n + 1)]
+    out += [SensorGain(ch.name) for ch in case.channels]
+    if case.config.objective.residual == "complex":
+        out += [SensorDelay(ch.name) for ch in case.channels]
+    return out
+
+
+def _null_values(enrichment, refs):
+    return enrichment.spec(refs)["null"]
+
+
+def _score(case, target, z_base, enrichment):
+    """Expected chi-square drop and the fraction of the effect the baseline cannot absorb."""
+    refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
+    null = _null_values(enrichment, refs)
+    if enrichment.family == "secondary_oscillator":
+        null = [1e-4, null[1], null[2]]  # derivative in mu is taken at a tiny appendage
+    pr = _problem(case, target, [enrichment], [null], compile=False)
+    k = len(enrichment.names)
+    z = np.concatenate([z_base, pr.params.z_from_theta(
+        np.concatenate([pr.theta(np.concatenate([z_base, np.zeros(k)]))[:-k], null]))[-k:]])
+    r, J = pr.residuals(z)
+    Jb, Je = J[:, :-k], J[:, -k:]
+    Q, _ = np.linalg.qr(Jb)
+    Jp = Je - Q @ (Q.T @ Je)
+    rp = r - Q @ (Q.T @ r)
+    raw = np.linalg.norm(Je)
+    kept = np.linalg.norm(Jp) / raw if raw > 0 else 0.0
+    if kept < 1e-9:
+        return 0.0, kept
+    g = Jp.T @ rp
+    return float(g @ np.linalg.pinv(Jp.T @ Jp) @ g), float(kept)
+
+
+def _extra_peaks(case, problem, z):
+    """Measured peak frequencies, and those the baseline model has no mode near."""
+    from .frf import modal_parameters
+    M, K, C = problem.matrices(z)
+    fm, _, _ = modal_parameters(M, C, K)
+    det = np.abs(case.H)
+    fc = case.config.frequencies
+    peaks = case.f[find_peaks(case.f, det, fmin=fc.fmin, fmax=fc.fmax)]
+    return [p for p in peaks if np.min(np.abs(fm - p) / p) > 0.02] or list(peaks)
+
+
+# --------------------------------------------------------------------- main
+def _bands(f_idx):
+    """Contiguous groups of fitted points: one band per half-power window."""
+    groups, start = [], 0
+    for k in range(1, len(f_idx) + 1):
+        if k == len(f_idx) or f_idx[k] - f_idx[k - 1] > 1:
+            groups.append(np.arange(start, k))
+            start = k
+    return groups
+
+
+def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
+    rf = _normalised(problem, z, case, fit, sig_fit)
+    rh = _normalised(problem, z, case, held, sig_held)
+    cells = []
+    for b, g in enumerate(_bands(fit)):
+        lo, hi = case.f[fit[g[0]]], case.f[fit[g[-1]]]
+        width = hi - lo
+        near = (case.f[held] >= lo - 3 * width) & (case.f[held] <= hi + 3 * width)
+        for c, ch in enumerate(case.channels):
+            cells.append({"channel": ch.name, "band_hz": [float(lo), float(hi)],
+                          "fitted": float(np.mean(rf[c, g] ** 2)),
+                          "held_out": float(np.mean(rh[c, near] ** 2)) if near.any() else None})
+    return cells, rf, rh
+
+
+def diagnose(cfg, out, log=print, top=4):
+    """Diagnose a case; writes out/diagnosis.json and figures; returns the dict."""
+    case = assemble(cfg)
+    fit = case.selected
+    cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
+    wide = np.asarray(_half_power(cfg3, case.f, case.H, case.channels, case.target.excitation,
+                                  case.coherence), int)
+    held = np.setdiff1d(wide[case.f[wide] > 0], fit)
+    sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
+    target = _target(case, fit, sig_fit)
+    base = _problem(case, target)
+    z0 = base.z0
+    lo, hi = base.bounds
+    rng = np.random.default_rng(cfg.search.seed)
+    starts = [z0] + [np.clip(z0 + 0.1 * (hi - lo) * rng.uniform(-1, 1, z0.size), lo, hi)
+                     for _ in range(max(cfg.search.starts // 4, 2))]
+    b_res = _fit(base, starts)
+    n_fit = base.n_used
+    chi_b = 2 * b_res.f
+    nu = max(n_fit - base.params.n_z, 1)
+    cells, rf0, rh0 = _residual_map(case, base, b_res.z, fit, held, sig_fit, sig_held)
+    held_b = float(np.mean(rh0 ** 2))
+    adequate = chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu) and held_b < 2.0
+    log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
+        f"held-out {held_b:.2f} on {rh0.size} points")
+    extra = _extra_peaks(case, base, b_res.z)
+    scored = []
+    absorbed = []
+    for e in candidates(case, extra):
+        s, kept = _score(case, target, b_res.z, e)
+        if kept < ABSORBED:
+            absorbed.append({"physics": e.family, "location": e.location,
+                             "fraction_left": kept})
+        scored.append((s, e))
+    scored.sort(key=lambda t: -t[0])
+    results = []
+    for s, e in scored[:top]:
+        refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
+        pr = _problem(case, target, [e])
+        k = len(e.names)
+        z_init = np.concatenate([b_res.z, pr.z0[-k:]])
+        res = _fit(pr, [z_init, pr.z0])
+        theta_e = pr.theta(res.z)[-k:]
+        sp = e.spec(refs)
+        at_bound = any(abs(t - b) <= 1e-6 * max(abs(sc), 1e-12) * 10
+                       for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
+                       for b in (lo_, hi_) if b != 0.0)
+        chi = 2 * res.f
+        rh = _normalised(pr, res.z, case, held, sig_held)
+        r_cov = pr.residuals(res.z)
+        from .identify import standard_errors
+        cov, _, _ = standard_errors(r_cov[1], r_cov[0], pr.n_used)
+        se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))[-k:]
+        entry = {"physics": e.family, "location": e.location, "enrichment": e,
+                 "parameters": dict(zip(e.names, map(float, theta_e))),
+                 "uncertainty": dict(zip(e.names, map(float, se))),
+                 "score": s, "chi2": chi, "delta_bic": chi - chi_b + k * math.log(n_fit),
+                 "held_out": float(np.mean(rh ** 2)), "at_bound": at_bound, "z": res.z,
+                 "problem": pr}
+        entry["accepted"] = (entry["delta_bic"] <= -BIC_ACCEPT and entry["held_out"] < held_b
+                             and not at_bound)
+        results.append(entry)
+        log(f"  candidate {e.family} {e.location}: score {s:.1f}, dBIC {entry['delta_bic']:.1f}, "
+            f"held-out {entry['held_out']:.2f}{' (accepted)' if entry['accepted'] else ''}")
+    accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
+    return _verdict(cfg, case, out, log, base, b_res, adequate, accepted, results, absorbed,
+                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b)
+
+
+def _statement(r):
+    loc = r["location"]
+    where = (f"at floor {loc['floor']}" if "floor" in loc else
+             f"between {'the ground' if loc['between'][0] == 0 else 'floor ' + str(loc['between'][0])}"
+             f" and floor {loc['between'][1]}" if "between" in loc else
+             f"on channel {loc['channel']}" if "channel" in loc else "of the whole structure")
+    pars = ", ".join(f"{k} = {v:.4g} +- {r['uncertainty'][k]:.2g}" for k, v in r["parameters"].items())
+    words = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
+             "secondary_oscillator": "a secondary oscillator (appendage)",
+             "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic damping",
+             "nonadjacent_coupling": "stiffness between non-adjacent floors",
+             "sensor_gain": "a sensor gain error", "sensor_delay": "a sensor time delay"}
+    return f"The data show {words[r['physics']]} {where} ({pars})."
+
+
+def _public(r):
+    keep = ("physics", "location", "parameters", "uncertainty")
+    d = {k: r[k] for k in keep}
+    d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
+                     "held_out_chi2": r["held_out"]}
+    d["statement"] = _statement(r)
+    return d
+
+
+def _verdict(cfg, case, out, log, base, b_res, adequate, accepted, results, absorbed, cells,
+             fit, held, sig_fit, sig_held, chi_b, nu, held_b):
+    from .results import write_json
+    from .diagnose_plots import plot_diagnosis
+    suggestions = []
+    alternatives = []
+    findings = []
+    best = accepted[0] if accepted else None
+    if best is not None:
+        findings = [_public(best)]
+        ties = [r for r in accepted[1:] if r["delta_bic"] - best["delta_bic"] < BIC_TIE]
+        alternatives = [_public(r) for r in accepted[1:]]
+        if ties:
+            verdict = "ambiguous"
+            for r in [best] + ties:
+                s = SUGGESTIONS[r["physics"]]
+                if s not in suggestions:
+                    suggestions.append(s)
+        else:
+            verdict = "missing_physics"
+    elif adequate:
+        verdict = "adequate"
+    else:
+        verdict = "ambiguous"
+        suggestions = [SUGGESTIONS[r["physics"]] for r in results[:2]]
+    improved = best["problem"] if best else base
+    z_imp = best["z"] if best else b_res.z
+    cells_after, _, rh1 = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
+    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
+    fit_after = fit_before if best is None else {
+        "objective": best["chi2"] / 2, "reduced_chi2": best["chi2"] / max(nu - len(best["parameters"]), 1),
+        "held_out_chi2": best["held_out"]}
+    result = {"verdict": verdict, "findings": findings, "alternatives": alternatives,
+              "absorbed": absorbed, "fit": {"before": fit_before, "after": fit_after},
+              "residual_map": {"before": cells, "after": cells_after},
+              "suggested_measurements": suggestions}
+    os.makedirs(out, exist_ok=True)
+    plot_diagnosis(out, case, base, b_res.z, improved, z_imp, cells, cells_after,
+                   best["physics"] if best else None)
+    write_json(os.path.join(out, "diagnosis.json"), result)
+    log(f"verdict: {verdict}")
+    for fd in findings:
+        log("  " + fd["statement"])
+    if alternatives:
+        log("  alternatives: " + "; ".join(f"{a['physics']} {a['location']}" for a in alternatives))
+    for s in suggestions:
+        log(f"  suggested measurement: {s}")
+    log(f"  fit before: reduced chi-square {fit_before['reduced_chi2']:.2f}, held-out "
+        f"{fit_before['held_out_chi2']:.2f}; after: {fit_after['reduced_chi2']:.2f}, "
+        f"{fit_after['held_out_chi2']:.2f}")
+    return result
