@@ -30,7 +30,6 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
-from .freqsel import find_peaks
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                       extend_parameters, references)
@@ -95,8 +94,7 @@ def _target(case, idx, sigma):
 
 def _problem(case, target, enrichments=(), values=None, compile=True):
     cfg = case.config
-    refs = references(case.model, case.damping.C0 if hasattr(case.damping, "C0")
-                      else np.eye(case.model.n))
+    refs = _refs(case)
     params = extend_parameters(case.params, enrichments, refs, values)
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), compile)
     return UpdatingProblem(case.model, case.damping, params, target, residual="log_magnitude",
@@ -119,13 +117,12 @@ def _fit(problem, z0_list):
 
 
 # ---------------------------------------------------------------- candidates
-def candidates(case, extra_freqs=()):
-    """Every family x location that the data could reveal (sensor delay needs phase)."""
+def candidates(case):
+    """Every family x location that the data could reveal, but the secondary
+    oscillator (scanned separately; sensor delay needs the phase)."""
     n = case.model.n
     out = [AddedMass(i) for i in range(1, n + 1)]
     out.append(BaseFlexibility())
-    for f0 in extra_freqs:
-        out += [SecondaryOscillator(i, float(f0)) for i in range(1, n + 1)]
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
     out += [HystereticDamping()] + [HystereticDamping(s) for s in range(1, n + 1)]
     out += [NonadjacentCoupling(i, j) for i in range(1, n + 1) for j in range(i + 2, n + 1)]
@@ -135,42 +132,54 @@ def candidates(case, extra_freqs=()):
     return out
 
 
-def _null_values(enrichment, refs):
-    return enrichment.spec(refs)["null"]
+def _refs(case):
+    return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 
 
-def _score(case, target, z_base, enrichment):
-    """Expected chi-square drop and the fraction of the effect the baseline cannot absorb."""
-    refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
-    null = _null_values(enrichment, refs)
-    if enrichment.family == "secondary_oscillator":
-        null = [1e-4, null[1], null[2]]  # derivative in mu is taken at a tiny appendage
-    pr = _problem(case, target, [enrichment], [null], compile=False)
-    k = len(enrichment.names)
-    z = np.concatenate([z_base, pr.params.z_from_theta(
-        np.concatenate([pr.theta(np.concatenate([z_base, np.zeros(k)]))[:-k], null]))[-k:]])
+def _at(pr, z_base, values):
+    """Decision vector: the baseline's, then the enrichment's parameters at values."""
+    k = pr.params.n_physics
+    theta = pr.theta(np.concatenate([z_base, np.zeros(pr.params.n_z - z_base.size)]))
+    theta[-k:] = values
+    return np.concatenate([z_base, pr.params.z_from_theta(theta)[z_base.size:]])
+
+
+def _score_at(pr, z, k):
+    """Expected chi-square drop of freeing the last k variables, and the fraction of
+    their effect left after projecting out the baseline Jacobian."""
     r, J = pr.residuals(z)
     Jb, Je = J[:, :-k], J[:, -k:]
     Q, _ = np.linalg.qr(Jb)
     Jp = Je - Q @ (Q.T @ Je)
     rp = r - Q @ (Q.T @ r)
     raw = np.linalg.norm(Je)
-    kept = np.linalg.norm(Jp) / raw if raw > 0 else 0.0
+    kept = float(np.linalg.norm(Jp) / raw) if raw > 0 else 0.0
     if kept < 1e-9:
         return 0.0, kept
     g = Jp.T @ rp
-    return float(g @ np.linalg.pinv(Jp.T @ Jp) @ g), float(kept)
+    return float(g @ np.linalg.pinv(Jp.T @ Jp) @ g), kept
 
 
-def _extra_peaks(case, problem, z):
-    """Measured peak frequencies, and those the baseline model has no mode near."""
-    from .frf import modal_parameters
-    M, K, C = problem.matrices(z)
-    fm, _, _ = modal_parameters(M, C, K)
-    det = np.abs(case.H)
-    fc = case.config.frequencies
-    peaks = case.f[find_peaks(case.f, det, fmin=fc.fmin, fmax=fc.fmax)]
-    return [p for p in peaks if np.min(np.abs(fm - p) / p) > 0.02] or list(peaks)
+def _score(case, target, z_base, enrichment):
+    """Score test of one candidate at its null value."""
+    null = enrichment.spec(_refs(case))["null"]
+    pr = _problem(case, target, [enrichment], [null], compile=False)
+    return _score_at(pr, _at(pr, z_base, null), len(enrichment.names))
+
+
+def _scan_secondary(case, target, z_base, n_grid=48):
+    """Best appendage frequency per floor: the score of a tiny oscillator scanned over
+    the band (its frequency is a nuisance parameter, undefined under the null)."""
+    f_sel = case.f[case.selected]
+    grid = np.geomspace(0.8 * f_sel.min(), 1.1 * f_sel.max(), n_grid)
+    out = []
+    for floor in range(1, case.model.n + 1):
+        e = SecondaryOscillator(floor, float(grid[0]))
+        pr = _problem(case, target, [e], [[1e-4, grid[0], 0.02]], compile=False)
+        scores = [_score_at(pr, _at(pr, z_base, [1e-4, f0, 0.02]), 3) for f0 in grid]
+        best = int(np.argmax([sc for sc, _ in scores]))
+        out.append((SecondaryOscillator(floor, float(grid[best])), scores[best]))
+    return out
 
 
 # --------------------------------------------------------------------- main
@@ -224,11 +233,11 @@ def diagnose(cfg, out, log=print, top=4):
     adequate = chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu) and held_b < 2.0
     log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
         f"held-out {held_b:.2f} on {rh0.size} points")
-    extra = _extra_peaks(case, base, b_res.z)
     scored = []
     absorbed = []
-    for e in candidates(case, extra):
-        s, kept = _score(case, target, b_res.z, e)
+    pairs = [(e, _score(case, target, b_res.z, e)) for e in candidates(case)]
+    pairs += _scan_secondary(case, target, b_res.z)
+    for e, (s, kept) in pairs:
         if kept < ABSORBED:
             absorbed.append({"physics": e.family, "location": e.location,
                              "fraction_left": kept})
@@ -236,7 +245,7 @@ def diagnose(cfg, out, log=print, top=4):
     scored.sort(key=lambda t: -t[0])
     results = []
     for s, e in scored[:top]:
-        refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
+        refs = _refs(case)
         pr = _problem(case, target, [e])
         k = len(e.names)
         z_init = np.concatenate([b_res.z, pr.z0[-k:]])

@@ -116,8 +116,8 @@ class SecondaryOscillator:
         return {"floor": self.floor}
 
     def spec(self, ref):
-        return {"initial": [0.02, self.f0, 0.02], "lower": [0.0, 0.8 * self.f0, 0.001],
-                "upper": [0.5, 1.25 * self.f0, 0.3], "scale": [0.01, 0.1 * self.f0, 0.01],
+        return {"initial": [0.02, self.f0, 0.02], "lower": [0.0, 0.5 * self.f0, 0.001],
+                "upper": [0.5, 2.0 * self.f0, 0.3], "scale": [0.01, 0.1 * self.f0, 0.01],
                 "null": [0.0, self.f0, 0.02]}
 
     def apply(self, sys, th, ref):

@@ -225,11 +225,25 @@ def _time_axis(path, cols, n, fs):
     if np.any(steps <= 0):
         raise InputError(path, tkey, "strictly increasing times",
                          got=f"step {steps.min()} s at sample {int(np.argmin(steps))}")
+    # Time stamps printed with d decimals carry a rounding error up to 10^-d:
+    # that is not uneven sampling, so allow it and rebuild the axis.
+    res = _resolution(t)
     jitter = np.max(np.abs(steps - dt)) / dt
-    if jitter > MAX_JITTER:
-        raise InputError(path, tkey, f"even sampling (relative step jitter < {MAX_JITTER:g})",
+    if jitter > MAX_JITTER + 2 * res / dt:
+        raise InputError(path, tkey, f"even sampling (relative step jitter < {MAX_JITTER:g} "
+                         "beyond the time stamps' rounding)",
                          got=f"jitter {jitter:.3g} at sample {int(np.argmax(np.abs(steps - dt)))}")
-    return t, 1.0 / dt
+    return t[0] + dt * np.arange(n), 1.0 / dt
+
+
+def _resolution(t):
+    """Rounding step of printed time stamps: 10^-d for the fewest decimals d that
+    reproduce them; 0 for full-precision times."""
+    scale = max(np.max(np.abs(t)), 1e-300)
+    for d in range(0, 10):
+        if np.allclose(t, np.round(t, d), rtol=0, atol=1e-9 * scale):
+            return 0.5 * 10.0 ** -d
+    return 0.0
 
 
 def read_time_histories(path, channels, fs=None):
