@@ -39,6 +39,7 @@ __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS"]
 
 BIC_ACCEPT = 10.0      # "very strong" evidence (Kass & Raftery)
 BIC_TIE = 6.0          # accepted candidates closer than this cannot be told apart
+HELD_OUT_GAIN = 0.8    # accepted physics must cut the held-out chi-square by 20 % or more
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
 
 SUGGESTIONS = {
@@ -97,14 +98,19 @@ def _problem(case, target, enrichments=(), values=None, compile=True):
     refs = _refs(case)
     params = extend_parameters(case.params, enrichments, refs, values)
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), compile)
-    return UpdatingProblem(case.model, case.damping, params, target, residual="log_magnitude",
+    residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
+    return UpdatingProblem(case.model, case.damping, params, target, residual=residual,
                            solver=solver, total_mass=cfg.parameters.total_mass,
                            enrichments=enrichments, refs=refs)
 
 
 def _normalised(problem, z, case, idx, sigma):
+    """Residuals over noise: ln|Ha/Hx|, or |ln(Ha/Hx)| / sqrt(2) when phase is fitted."""
     Ha = problem.channel_frfs(z, 2 * np.pi * case.f[idx])
-    return (np.log(np.abs(Ha)) - np.log(np.abs(case.H[:, idx]))) / sigma
+    d = np.log(Ha / case.H[:, idx])
+    if case.config.objective.residual == "complex":
+        return np.abs(d) / np.sqrt(2) / sigma
+    return d.real / sigma
 
 
 def _fit(problem, z0_list):
@@ -130,6 +136,21 @@ def candidates(case):
     if case.config.objective.residual == "complex":
         out += [SensorDelay(ch.name) for ch in case.channels]
     return out
+
+
+def _to_refit(scored, top):
+    """Every competitive candidate (score within a factor 3 of the best, at most
+    2 x top) and the best location of every other family."""
+    if not scored:
+        return []
+    best = scored[0][0]
+    chosen = [(s, e) for s, e in scored if s >= best / 3][:2 * top]
+    seen = {e.family for _, e in chosen}
+    for s, e in scored:
+        if e.family not in seen and s > 0:
+            chosen.append((s, e))
+            seen.add(e.family)
+    return chosen
 
 
 def _refs(case):
@@ -244,14 +265,17 @@ def diagnose(cfg, out, log=print, top=4):
         scored.append((s, e))
     scored.sort(key=lambda t: -t[0])
     results = []
-    for s, e in scored[:top]:
+    for s, e in _to_refit(scored, top):
         refs = _refs(case)
         pr = _problem(case, target, [e])
         k = len(e.names)
-        z_init = np.concatenate([b_res.z, pr.z0[-k:]])
+        sp = e.spec(refs)
+        # start the added parameters inside their box, not on a zero bound
+        start = [max(v, lo_ + 0.5 * sc) if v <= lo_ else v
+                 for v, lo_, sc in zip(sp["initial"], sp["lower"], sp["scale"])]
+        z_init = _at(pr, b_res.z, start)
         res = _fit(pr, [z_init, pr.z0])
         theta_e = pr.theta(res.z)[-k:]
-        sp = e.spec(refs)
         at_bound = any(abs(t - b) <= 1e-6 * max(abs(sc), 1e-12) * 10
                        for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
                        for b in (lo_, hi_) if b != 0.0)
@@ -267,8 +291,8 @@ def diagnose(cfg, out, log=print, top=4):
                  "score": s, "chi2": chi, "delta_bic": chi - chi_b + k * math.log(n_fit),
                  "held_out": float(np.mean(rh ** 2)), "at_bound": at_bound, "z": res.z,
                  "problem": pr}
-        entry["accepted"] = (entry["delta_bic"] <= -BIC_ACCEPT and entry["held_out"] < held_b
-                             and not at_bound)
+        entry["accepted"] = (entry["delta_bic"] <= -BIC_ACCEPT
+                             and entry["held_out"] <= HELD_OUT_GAIN * held_b and not at_bound)
         results.append(entry)
         log(f"  candidate {e.family} {e.location}: score {s:.1f}, dBIC {entry['delta_bic']:.1f}, "
             f"held-out {entry['held_out']:.2f}{' (accepted)' if entry['accepted'] else ''}")
