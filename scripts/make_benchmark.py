@@ -83,13 +83,13 @@ def true_system(m, k, zeta, family, loc, value):
     return M, C, K, Kh
 
 
-def _records(M, C, K, Kh, n, excitation, dof, rng, level=1.0):
+def _records(M, C, K, Kh, n, excitation, dof, rng, level=1.0, seconds=SECONDS):
     """Simulated inputs and floor accelerations. Hysteretic damping is simulated as an
     equivalent viscous term at each mode (exact at the resonances)."""
     # Simulate 8x faster than the recorders sample: the first-order hold of the
     # simulation then filters the band of interest by less than 0.1 %.
     fs_sim = 8 * FS
-    t = np.arange(0, SECONDS, 1 / fs_sim)
+    t = np.arange(0, seconds, 1 / fs_sim)
     u = rng.standard_normal(t.size)
     spec = np.fft.rfft(u)
     fr = np.fft.rfftfreq(t.size, 1 / fs_sim)
@@ -131,7 +131,8 @@ def make_case(folder, spec, seed):
     dof = spec.get("shaker_floor", 1) - 1
     M, C, K, Kh = true_system(m, k, zeta, family, loc, value)
     k_nominal = k * (1 + rng.uniform(-0.15, 0.15, n)) if spec.get("ordinary", True) else k
-    t, u, acc = _records(M, C, K, Kh, n, excitation, dof, rng)
+    t, u, acc = _records(M, C, K, Kh, n, excitation, dof, rng,
+                         seconds=spec.get("seconds", SECONDS))
     noise = 0.01
     cols = {"t": t, "input": u + noise * np.std(u) * rng.standard_normal(t.size)}
     for i in range(n):

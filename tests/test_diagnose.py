@@ -1,0 +1,49 @@
+"""Missing physics on small synthetic cases: one per family, a null and an ordinary change.
+
+The cases come from scripts/make_benchmark.py (3 storeys, 600-s records, H1 FRFs);
+the diagnosis reads only case.yaml and the records; truth is in this file.
+"""
+
+import json
+
+import pytest
+
+from make_benchmark import make_case
+from nlp.config import load_case
+from nlp.diagnose import diagnose
+
+CASES = [
+    ("added_mass", {"location": 2, "value": 1.5}, {"floor": 2}),
+    ("base_flexibility", {"location": None, "value": [2.5, 12000.0, 2.0]}, {}),
+    ("secondary_oscillator", {"location": 3, "value": [0.04, 4.0, 0.02]}, {"floor": 3}),
+    ("local_damper", {"location": (0, 1), "value": 12.0}, {"between": [0, 1]}),
+    ("hysteretic_damping", {"location": None, "value": 0.04}, {}),
+    ("nonadjacent_coupling", {"location": (1, 3), "value": 1000.0}, {"between": [1, 3]}),
+    ("sensor_gain", {"location": 2, "value": 0.3}, {"channel": "a2"}),
+    ("sensor_delay", {"location": 3, "value": 30.0}, {"channel": "a3"}),
+]
+
+
+def _run(tmp_path, spec, seed):
+    folder = str(tmp_path / "case")
+    make_case(folder, {"storeys": 3, "seconds": 600.0, **spec}, seed)
+    return diagnose(load_case(folder + "/case.yaml"), str(tmp_path / "out"), log=lambda *_: None)
+
+
+@pytest.mark.parametrize("family,effect,location", CASES, ids=[c[0] for c in CASES])
+def test_family_found_at_its_location(tmp_path, family, effect, location):
+    res = _run(tmp_path, {"excitation": "ground", "family": family, **effect}, seed=11)
+    assert res["verdict"] == "missing_physics", (res["verdict"], res["findings"], res["alternatives"])
+    found = res["findings"][0]
+    assert found["physics"] == family
+    assert found["location"] == location
+    assert res["fit"]["after"]["held_out_chi2"] <= 0.5 * res["fit"]["before"]["held_out_chi2"]
+    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert saved["verdict"] == res["verdict"] and saved["findings"][0]["statement"]
+
+
+@pytest.mark.parametrize("ordinary", [False, True], ids=["null", "ordinary_change"])
+def test_no_missing_physics_stays_adequate(tmp_path, ordinary):
+    res = _run(tmp_path, {"excitation": "force", "family": None, "ordinary": ordinary}, seed=12)
+    assert res["verdict"] == "adequate", res["findings"]
+    assert res["findings"] == []
