@@ -157,12 +157,12 @@ def _refs(case):
     return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 
 
-def _at(pr, z_base, values):
-    """Decision vector: the baseline's, then the enrichment's parameters at values."""
-    k = pr.params.n_physics
-    theta = pr.theta(np.concatenate([z_base, np.zeros(pr.params.n_z - z_base.size)]))
+def _at(pr, z_cur, values):
+    """Decision vector: the current model's, then the new enrichment's parameters."""
+    k = len(values)
+    theta = pr.theta(np.concatenate([z_cur, np.zeros(pr.params.n_z - z_cur.size)]))
     theta[-k:] = values
-    return np.concatenate([z_base, pr.params.z_from_theta(theta)[z_base.size:]])
+    return np.concatenate([z_cur, pr.params.z_from_theta(theta)[z_cur.size:]])
 
 
 def _score_at(pr, z, k):
@@ -181,23 +181,25 @@ def _score_at(pr, z, k):
     return float(g @ np.linalg.pinv(Jp.T @ Jp) @ g), kept
 
 
-def _score(case, target, z_base, enrichment):
-    """Score test of one candidate at its null value."""
+def _score(case, target, current, z_cur, enrichment):
+    """Score test of one candidate at its null value, on top of the current model."""
     null = enrichment.spec(_refs(case))["null"]
-    pr = _problem(case, target, [enrichment], [null], compile=False)
-    return _score_at(pr, _at(pr, z_base, null), len(enrichment.names))
+    pr = _problem(case, target, current + [enrichment], compile=False)
+    return _score_at(pr, _at(pr, z_cur, null), len(enrichment.names))
 
 
-def _scan_secondary(case, target, z_base, n_grid=48):
+def _scan_secondary(case, target, current, z_cur, n_grid=48):
     """Best appendage frequency per floor: the score of a tiny oscillator scanned over
     the band (its frequency is a nuisance parameter, undefined under the null)."""
     f_sel = case.f[case.selected]
     grid = np.geomspace(0.8 * f_sel.min(), 1.1 * f_sel.max(), n_grid)
     out = []
     for floor in range(1, case.model.n + 1):
+        if any(e.family == "secondary_oscillator" and e.floor == floor for e in current):
+            continue
         e = SecondaryOscillator(floor, float(grid[0]))
-        pr = _problem(case, target, [e], [[1e-4, grid[0], 0.02]], compile=False)
-        scores = [_score_at(pr, _at(pr, z_base, [1e-4, f0, 0.02]), 3) for f0 in grid]
+        pr = _problem(case, target, current + [e], compile=False)
+        scores = [_score_at(pr, _at(pr, z_cur, [1e-4, f0, 0.02]), 3) for f0 in grid]
         best = int(np.argmax([sc for sc, _ in scores]))
         out.append((SecondaryOscillator(floor, float(grid[best])), scores[best]))
     return out
@@ -229,8 +231,51 @@ def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
     return cells, rf, rh
 
 
-def diagnose(cfg, out, log=print, top=4):
-    """Diagnose a case; writes out/diagnosis.json and figures; returns the dict."""
+def _refit(case, target, current, z_cur, e, score, ref_chi, ref_held, n_fit, held, sig_held):
+    """Fit the current model plus candidate e; evidence against the current model."""
+    from .identify import standard_errors
+    refs = _refs(case)
+    pr = _problem(case, target, current + [e])
+    k = len(e.names)
+    sp = e.spec(refs)
+    # start the added parameters inside their box, not on a zero bound
+    start = [max(v, lo_ + 0.5 * sc) if v <= lo_ else v
+             for v, lo_, sc in zip(sp["initial"], sp["lower"], sp["scale"])]
+    res = _fit(pr, [_at(pr, z_cur, start), pr.z0])
+    theta_e = pr.theta(res.z)[-k:]
+    at_bound = any(abs(t - b) <= 1e-5 * max(abs(sc), 1e-12)
+                   for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
+                   for b in (lo_, hi_) if b != 0.0)
+    chi = 2 * res.f
+    rh = _normalised(pr, res.z, case, held, sig_held)
+    r, J = pr.residuals(res.z)
+    cov, _, _ = standard_errors(J, r, pr.n_used)
+    se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))[-k:]
+    entry = {"physics": e.family, "location": e.location, "enrichment": e,
+             "parameters": dict(zip(e.names, map(float, theta_e))),
+             "uncertainty": dict(zip(e.names, map(float, se))),
+             "score": score, "chi2": chi, "delta_bic": chi - ref_chi + k * math.log(n_fit),
+             "held_out": float(np.mean(rh ** 2)), "at_bound": at_bound, "z": res.z, "problem": pr}
+    entry["accepted"] = (entry["delta_bic"] <= -BIC_ACCEPT
+                         and entry["held_out"] <= HELD_OUT_GAIN * ref_held and not at_bound)
+    return entry
+
+
+def _same(e, current):
+    return any(c.family == e.family and c.location == e.location for c in current)
+
+
+def _adequate(chi, nu, held):
+    return chi / nu < 1.5 + 3 * math.sqrt(2 / nu) and held < 2.0
+
+
+def diagnose(cfg, out, log=print, top=4, max_findings=3):
+    """Diagnose a case; writes out/diagnosis.json and figures; returns the dict.
+
+    Forward selection: each round adds the best accepted candidate to the model
+    and looks again, until the model explains the data, nothing more is
+    accepted, candidates tie (ambiguous), or max_findings are found.
+    """
     case = assemble(cfg)
     fit = case.selected
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
@@ -249,129 +294,134 @@ def diagnose(cfg, out, log=print, top=4):
     n_fit = base.n_used
     chi_b = 2 * b_res.f
     nu = max(n_fit - base.params.n_z, 1)
-    cells, rf0, rh0 = _residual_map(case, base, b_res.z, fit, held, sig_fit, sig_held)
+    cells, _, rh0 = _residual_map(case, base, b_res.z, fit, held, sig_fit, sig_held)
     held_b = float(np.mean(rh0 ** 2))
-    adequate = chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu) and held_b < 2.0
     log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
         f"held-out {held_b:.2f} on {rh0.size} points")
-    scored = []
-    absorbed = []
-    pairs = [(e, _score(case, target, b_res.z, e)) for e in candidates(case)]
-    pairs += _scan_secondary(case, target, b_res.z)
-    for e, (s, kept) in pairs:
-        if kept < ABSORBED:
-            absorbed.append({"physics": e.family, "location": e.location,
-                             "fraction_left": kept})
-        scored.append((s, e))
-    scored.sort(key=lambda t: -t[0])
-    results = []
-    for s, e in _to_refit(scored, top):
-        refs = _refs(case)
-        pr = _problem(case, target, [e])
-        k = len(e.names)
-        sp = e.spec(refs)
-        # start the added parameters inside their box, not on a zero bound
-        start = [max(v, lo_ + 0.5 * sc) if v <= lo_ else v
-                 for v, lo_, sc in zip(sp["initial"], sp["lower"], sp["scale"])]
-        z_init = _at(pr, b_res.z, start)
-        res = _fit(pr, [z_init, pr.z0])
-        theta_e = pr.theta(res.z)[-k:]
-        at_bound = any(abs(t - b) <= 1e-6 * max(abs(sc), 1e-12) * 10
-                       for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
-                       for b in (lo_, hi_) if b != 0.0)
-        chi = 2 * res.f
-        rh = _normalised(pr, res.z, case, held, sig_held)
-        r_cov = pr.residuals(res.z)
-        from .identify import standard_errors
-        cov, _, _ = standard_errors(r_cov[1], r_cov[0], pr.n_used)
-        se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))[-k:]
-        entry = {"physics": e.family, "location": e.location, "enrichment": e,
-                 "parameters": dict(zip(e.names, map(float, theta_e))),
-                 "uncertainty": dict(zip(e.names, map(float, se))),
-                 "score": s, "chi2": chi, "delta_bic": chi - chi_b + k * math.log(n_fit),
-                 "held_out": float(np.mean(rh ** 2)), "at_bound": at_bound, "z": res.z,
-                 "problem": pr}
-        entry["accepted"] = (entry["delta_bic"] <= -BIC_ACCEPT
-                             and entry["held_out"] <= HELD_OUT_GAIN * held_b and not at_bound)
-        results.append(entry)
-        log(f"  candidate {e.family} {e.location}: score {s:.1f}, dBIC {entry['delta_bic']:.1f}, "
-            f"held-out {entry['held_out']:.2f}{' (accepted)' if entry['accepted'] else ''}")
-    accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
-    return _verdict(cfg, case, out, log, base, b_res, adequate, accepted, results, absorbed,
-                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b)
+    state = {"current": [], "z": b_res.z, "chi": chi_b, "held": held_b, "problem": base}
+    found, alternatives, absorbed, ties, tried = [], [], [], [], []
+    for rnd in range(max_findings):
+        if _adequate(state["chi"], nu, state["held"]) and rnd > 0:
+            break
+        pairs = [(e, _score(case, target, state["current"], state["z"], e))
+                 for e in candidates(case) if not _same(e, state["current"])]
+        pairs += _scan_secondary(case, target, state["current"], state["z"])
+        if rnd == 0:
+            absorbed = [{"physics": e.family, "location": e.location, "fraction_left": kept}
+                        for e, (_, kept) in pairs if kept < ABSORBED]
+        scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
+        results = []
+        for sc, e in _to_refit(scored, top):
+            r = _refit(case, target, state["current"], state["z"], e, sc, state["chi"],
+                       state["held"], n_fit, held, sig_held)
+            results.append(r)
+            log(f"  [{rnd + 1}] {e.family} {e.location}: score {sc:.1f}, dBIC {r['delta_bic']:.1f}, "
+                f"held-out {r['held_out']:.2f}{' (accepted)' if r['accepted'] else ''}")
+        tried += results
+        accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
+        if not accepted:
+            break
+        best = accepted[0]
+        ties = [r for r in accepted[1:] if r["delta_bic"] - best["delta_bic"] < BIC_TIE]
+        if ties and rnd > 0:
+            # a further effect the data cannot attribute: report, do not add
+            alternatives += accepted
+            ties = []
+            break
+        found.append(best)
+        alternatives += accepted[1:]
+        if ties:
+            break
+        state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
+                 "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
+    return _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed,
+                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state)
 
 
 def _statement(r):
     loc = r["location"]
-    where = (f"at floor {loc['floor']}" if "floor" in loc else
-             f"between {'the ground' if loc['between'][0] == 0 else 'floor ' + str(loc['between'][0])}"
-             f" and floor {loc['between'][1]}" if "between" in loc else
-             f"on channel {loc['channel']}" if "channel" in loc else "of the whole structure")
-    pars = ", ".join(f"{k} = {v:.4g} +- {r['uncertainty'][k]:.2g}" for k, v in r["parameters"].items())
+    if "floor" in loc:
+        where = f"at floor {loc['floor']}"
+    elif "between" in loc:
+        a, b = loc["between"]
+        where = f"between {'the ground' if a == 0 else f'floor {a}'} and floor {b}"
+    elif "channel" in loc:
+        where = f"on channel {loc['channel']}"
+    else:
+        where = "of the whole structure"
+    pars = ", ".join(f"{k} = {v:.4g} +- {r['uncertainty'][k]:.2g}"
+                     for k, v in r["parameters"].items())
     words = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
              "secondary_oscillator": "a secondary oscillator (appendage)",
              "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic damping",
-             "nonadjacent_coupling": "stiffness between non-adjacent floors",
+             "nonadjacent_coupling": "a stiffness coupling (non-shear behaviour)",
              "sensor_gain": "a sensor gain error", "sensor_delay": "a sensor time delay"}
     return f"The data show {words[r['physics']]} {where} ({pars})."
 
 
 def _public(r):
-    keep = ("physics", "location", "parameters", "uncertainty")
-    d = {k: r[k] for k in keep}
+    d = {k: r[k] for k in ("physics", "location", "parameters", "uncertainty")}
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
                      "held_out_chi2": r["held_out"]}
     d["statement"] = _statement(r)
     return d
 
 
-def _verdict(cfg, case, out, log, base, b_res, adequate, accepted, results, absorbed, cells,
-             fit, held, sig_fit, sig_held, chi_b, nu, held_b):
-    from .results import write_json
+def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed, cells,
+             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state):
     from .diagnose_plots import plot_diagnosis
+    from .results import write_json
     suggestions = []
-    alternatives = []
-    findings = []
-    best = accepted[0] if accepted else None
-    if best is not None:
-        findings = [_public(best)]
-        ties = [r for r in accepted[1:] if r["delta_bic"] - best["delta_bic"] < BIC_TIE]
-        alternatives = [_public(r) for r in accepted[1:]]
-        if ties:
-            verdict = "ambiguous"
-            for r in [best] + ties:
-                s = SUGGESTIONS[r["physics"]]
-                if s not in suggestions:
-                    suggestions.append(s)
-        else:
-            verdict = "missing_physics"
-    elif adequate:
+    if found and ties:
+        verdict = "ambiguous"
+        for r in [found[-1]] + ties:
+            if SUGGESTIONS[r["physics"]] not in suggestions:
+                suggestions.append(SUGGESTIONS[r["physics"]])
+    elif found:
+        verdict = "missing_physics"
+    elif _adequate(chi_b, nu, held_b):
         verdict = "adequate"
     else:
         verdict = "ambiguous"
-        suggestions = [SUGGESTIONS[r["physics"]] for r in results[:2]]
-    improved = best["problem"] if best else base
-    z_imp = best["z"] if best else b_res.z
-    cells_after, _, rh1 = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
+        suggestions = list(dict.fromkeys(SUGGESTIONS[r["physics"]] for r in tried[:2]))
+    improved, z_imp = state["problem"], state["z"]
+    cells_after, _, _ = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
+    k = improved.params.n_z - base.params.n_z
     fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
-    fit_after = fit_before if best is None else {
-        "objective": best["chi2"] / 2, "reduced_chi2": best["chi2"] / max(nu - len(best["parameters"]), 1),
-        "held_out_chi2": best["held_out"]}
-    result = {"verdict": verdict, "findings": findings, "alternatives": alternatives,
-              "absorbed": absorbed, "fit": {"before": fit_before, "after": fit_after},
+    fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
+                 "held_out_chi2": state["held"]}
+    remaining = bool(found) and not _adequate(state["chi"], max(nu - k, 1), state["held"])
+    statements = [_statement(r) for r in found]
+    if remaining:
+        statements.append("With this added, residuals are still above the noise: more is "
+                          "missing than the candidate families describe.")
+    if verdict == "ambiguous" and not found:
+        statements.append("The model does not explain the data within the noise, and no "
+                          "candidate family explains the mismatch.")
+    alts, seen = [], {(r["physics"], repr(r["location"])) for r in found}
+    for r in sorted(alternatives, key=lambda r: r["delta_bic"]):
+        key = (r["physics"], repr(r["location"]))
+        if key not in seen:
+            seen.add(key)
+            alts.append(r)
+    alternatives = alts
+    result = {"verdict": verdict, "findings": [_public(r) for r in found],
+              "alternatives": [_public(r) for r in alternatives], "absorbed": absorbed,
+              "summary": statements, "remaining_mismatch": remaining,
+              "fit": {"before": fit_before, "after": fit_after},
               "residual_map": {"before": cells, "after": cells_after},
               "suggested_measurements": suggestions}
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, cells, cells_after,
-                   best["physics"] if best else None)
+                   " + ".join(r["physics"] for r in found) if found else None)
     write_json(os.path.join(out, "diagnosis.json"), result)
     log(f"verdict: {verdict}")
-    for fd in findings:
-        log("  " + fd["statement"])
+    for st in statements:
+        log("  " + st)
     if alternatives:
         log("  alternatives: " + "; ".join(f"{a['physics']} {a['location']}" for a in alternatives))
-    for s in suggestions:
-        log(f"  suggested measurement: {s}")
+    for sg in suggestions:
+        log(f"  suggested measurement: {sg}")
     log(f"  fit before: reduced chi-square {fit_before['reduced_chi2']:.2f}, held-out "
         f"{fit_before['held_out_chi2']:.2f}; after: {fit_after['reduced_chi2']:.2f}, "
         f"{fit_after['held_out_chi2']:.2f}")
