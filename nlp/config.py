@@ -83,6 +83,7 @@ class DataConfig:
     window: str = "hann"
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
+    level_files: tuple = ()                # the same test at other excitation levels
 
 
 @dataclass(frozen=True)
@@ -341,7 +342,7 @@ _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
-                              "validation_force_floor"})
+                              "validation_force_floor", "level_files"})
     kind = rd.choice(d, "type", "data.type", ("frf", "time_histories"), "frf")
     records = kind == "time_histories"
     if "file" not in d:
@@ -407,10 +408,19 @@ def _data(rd, d, base):
         raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
     vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
                        positive=True, integer=True)
+    levels = d.get("level_files") or []
+    if not isinstance(levels, list) or not all(isinstance(x, str) for x in levels):
+        raise rd.err("data.level_files", "a list of file names", levels)
+    level_paths = []
+    for i, x in enumerate(levels):
+        lp = os.path.join(base, x)
+        if not os.path.isfile(lp):
+            raise rd.err(f"data.level_files[{i}]", "an existing file", x)
+        level_paths.append(lp)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "hann")), validation_file=val,
-                      validation_force_floor=vfloor)
+                      validation_force_floor=vfloor, level_files=tuple(level_paths))
 
 
 def _updates_and_verification(rd, raw, cfg):

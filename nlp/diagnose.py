@@ -52,7 +52,9 @@ SUGGESTIONS = {
     "nonadjacent_coupling": "a second shaker position (force at another floor)",
     "sensor_gain": "a calibration check of that sensor, or a second sensor on the same floor",
     "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
+    "nonlinearity": "the same test at a second excitation level",
 }
+LEVEL_Z = 5.0          # story-stiffness change between levels, in standard errors
 
 
 # ---------------------------------------------------------------------- noise
@@ -261,6 +263,80 @@ def _refit(case, target, current, z_cur, e, score, ref_chi, ref_held, n_fit, hel
     return entry
 
 
+def _level_fit(cfg, path):
+    """Baseline fit to one test level: story stiffnesses with standard errors, modes."""
+    from .frf import modal_parameters
+    from .identify import standard_errors
+    c = assemble(cfg, data_file=path)
+    sig = noise_sigma(c, c.selected)
+    tg = _target(c, c.selected, sig)
+    pr = _problem(c, tg)
+    res = _fit(pr, [pr.z0])
+    r, J = pr.residuals(res.z)
+    cov, _, _ = standard_errors(J, r, pr.n_used)
+    theta = pr.theta(res.z)
+    se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))
+    sa, _, _ = pr.params.slices()
+    nom = c.model.alpha_nominal
+    M, K, C = pr.matrices(res.z)
+    fn, zeta, _ = modal_parameters(M, C, K)
+    return {"case": c, "problem": pr, "z": res.z, "sigma": sig, "k": nom * (1 + theta[sa]),
+            "k_se": nom * se[sa], "f": fn, "zeta": zeta, "path": path}
+
+
+def _nonlinearity(cfg, log):
+    """Compare the same model fitted to tests at different excitation levels.
+
+    A linear structure gives the same story stiffnesses at every level, within
+    their standard errors; a story whose equivalent stiffness moves by more than
+    LEVEL_Z standard errors is reported as level-dependent (nonlinear), with the
+    equivalent stiffness and the modal damping at each level.
+    """
+    if not cfg.data.level_files:
+        return None
+    fits = [_level_fit(cfg, p) for p in (cfg.data.file,) + tuple(cfg.data.level_files)]
+    ref = fits[0]
+    best = None
+    for lv in fits[1:]:
+        zsc = (lv["k"] - ref["k"]) / np.sqrt(lv["k_se"] ** 2 + ref["k_se"] ** 2)
+        i = int(np.argmax(np.abs(zsc)))
+        if best is None or abs(zsc[i]) > abs(best[1]):
+            best = (i, float(zsc[i]), lv)
+    i, zs, lv = best
+    log(f"levels: story {i + 1} stiffness {ref['k'][i]:.1f} -> {lv['k'][i]:.1f} N/m "
+        f"({zs:+.1f} standard errors)")
+    if abs(zs) < LEVEL_Z:
+        return {"found": None, "max_z": zs}
+    # held-out check on the other level: its own equivalent model against the reference one
+    c = lv["case"]
+    cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
+    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence), int)
+    held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
+    sig = noise_sigma(c, held)
+    before = float(np.mean(_normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
+    after = float(np.mean(_normalised(lv["problem"], lv["z"], c, held, sig) ** 2))
+    rel = float(lv["k"][i] / ref["k"][i] - 1)
+    shift = [float(100 * (b / a - 1)) for a, b in zip(ref["f"], lv["f"])]
+    finding = {
+        "physics": "nonlinearity", "location": {"between": [i, i + 1]},
+        "parameters": {f"k{i + 1}_level1": float(ref["k"][i]), f"k{i + 1}_level2": float(lv["k"][i]),
+                       "relative_change": rel,
+                       "damping_ratios_level1": ref["zeta"].tolist(),
+                       "damping_ratios_level2": lv["zeta"].tolist()},
+        "uncertainty": {f"k{i + 1}_level1": float(ref["k_se"][i]),
+                        f"k{i + 1}_level2": float(lv["k_se"][i])},
+        "evidence": {"z_score": zs, "frequency_shift_percent": shift,
+                     "held_out_chi2_other_level": {"level1_model": before, "level2_model": after}},
+        "statement": (f"The structure is not linear: the equivalent stiffness of story {i + 1} "
+                      f"(between {'the ground' if i == 0 else f'floor {i}'} and floor {i + 1}) "
+                      f"changes by {100 * rel:+.1f} % between excitation levels "
+                      f"({zs:+.1f} standard errors; modal frequencies shift "
+                      f"{', '.join(f'{x:+.2f} %' for x in shift)}). A level-dependent "
+                      "equivalent linear model is given for each level."),
+    }
+    return {"found": finding, "max_z": zs, "held_out": (before, after)}
+
+
 def _same(e, current):
     return any(c.family == e.family and c.location == e.location for c in current)
 
@@ -334,8 +410,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3):
             break
         state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
+    nonlin = _nonlinearity(cfg, log)
     return _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed,
-                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state)
+                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin)
 
 
 def _statement(r):
@@ -368,7 +445,7 @@ def _public(r):
 
 
 def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed, cells,
-             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state):
+             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin=None):
     from .diagnose_plots import plot_diagnosis
     from .results import write_json
     suggestions = []
@@ -377,7 +454,7 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
         for r in [found[-1]] + ties:
             if SUGGESTIONS[r["physics"]] not in suggestions:
                 suggestions.append(SUGGESTIONS[r["physics"]])
-    elif found:
+    elif found or (nonlin and nonlin["found"]):
         verdict = "missing_physics"
     elif _adequate(chi_b, nu, held_b):
         verdict = "adequate"
@@ -390,8 +467,18 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
     fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
+    if nonlin and nonlin["found"] and not found:
+        before_o, after_o = nonlin["held_out"]
+        fit_before["other_level_held_out_chi2"] = before_o
+        fit_after = dict(fit_before, other_level_held_out_chi2=after_o)
     remaining = bool(found) and not _adequate(state["chi"], max(nu - k, 1), state["held"])
     statements = [_statement(r) for r in found]
+    findings = [_public(r) for r in found]
+    if nonlin and nonlin["found"]:
+        findings.insert(0, nonlin["found"])
+        statements.insert(0, nonlin["found"]["statement"])
+    elif not cfg.data.level_files and verdict != "adequate":
+        suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
                           "missing than the candidate families describe.")
@@ -405,7 +492,7 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
             seen.add(key)
             alts.append(r)
     alternatives = alts
-    result = {"verdict": verdict, "findings": [_public(r) for r in found],
+    result = {"verdict": verdict, "findings": findings,
               "alternatives": [_public(r) for r in alternatives], "absorbed": absorbed,
               "summary": statements, "remaining_mismatch": remaining,
               "fit": {"before": fit_before, "after": fit_after},

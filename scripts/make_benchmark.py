@@ -84,8 +84,7 @@ def true_system(m, k, zeta, family, loc, value):
 
 
 def _records(M, C, K, Kh, n, excitation, dof, rng, level=1.0, seconds=SECONDS):
-    """Simulated inputs and floor accelerations. Hysteretic damping is simulated as an
-    equivalent viscous term at each mode (exact at the resonances)."""
+    """Simulated input and absolute floor accelerations (n, N) at the recorders' rate."""
     # Simulate 8x faster than the recorders sample: the first-order hold of the
     # simulation then filters the band of interest by less than 0.1 %.
     fs_sim = 8 * FS
@@ -120,6 +119,75 @@ def _filter(M, C, K, Kh, u, fs, excitation, dof, n):
     return np.fft.irfft(A * U, u.size)
 
 
+def _simulate_cubic(M, C, K, u, fs, excitation, dof, story, k3):
+    """Frame with a cubic spring k3 * drift^3 in one story: exact ZOH for the linear part,
+    the nonlinear force held over each (8x oversampled) step."""
+    from scipy.linalg import expm
+    n = M.shape[0]
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
+    b = -M @ np.ones(n) if excitation == "ground" else np.eye(n)[dof]
+    g = np.zeros(n)
+    g[story - 1] = 1.0
+    if story > 1:
+        g[story - 2] = -1.0
+    dt = 1 / fs
+    Phi = expm(A * dt)
+    Gam = np.linalg.solve(A, Phi - np.eye(2 * n))
+    Gu = Gam @ np.concatenate([np.zeros(n), Minv @ b])
+    Gn = Gam @ np.concatenate([np.zeros(n), -Minv @ g])
+    x = np.zeros(2 * n)
+    acc = np.empty((n, u.size))
+    for k in range(u.size):
+        q, v = x[:n], x[n:]
+        f = k3 * (g @ q) ** 3
+        acc[:, k] = Minv @ (b * u[k] - C @ v - K @ q - g * f)
+        x = Phi @ x + Gu * u[k] + Gn * f
+    if excitation == "ground":
+        acc += u
+    return acc
+
+
+def _nonlinear_records(M, C, K, n, excitation, dof, rng, story, stiffening, seconds):
+    """Records at a low and a high level; k3 makes the story stiffer by `stiffening`
+    (equivalent linearisation, 3 k3 E[drift^2]) at the high level."""
+    fs_sim = 8 * FS
+    t = np.arange(0, seconds, 1 / fs_sim)
+    u = rng.standard_normal(t.size)
+    spec = np.fft.rfft(u)
+    fr = np.fft.rfftfreq(t.size, 1 / fs_sim)
+    spec[(fr < 0.3) | (fr > 20.0)] = 0
+    u = np.fft.irfft(spec, t.size)
+    u = u / np.std(u)
+    lin = simulate(M, C, K, 3.0 * u, fs_sim, input=excitation, dof=None if excitation == "ground" else dof)
+    drift = lin.q[story - 1] - (lin.q[story - 2] if story > 1 else 0.0)
+    k_story = K[story - 1, story - 1] if story == n else -K[story - 1, story]
+    k3 = stiffening * k_story / (3 * np.var(drift))
+    out = []
+    for level in (1.0, 3.0):
+        acc = _simulate_cubic(M, C, K, level * u, fs_sim, excitation, dof, story, k3)
+        out.append((t[::8], level * u[::8], acc[:n, ::8]))
+    return out, k3
+
+
+def _noisy(t, u, acc, n, family, loc, value, rng, noise=0.01):
+    """Recorded columns: 1 % sensor noise, and the sensor families' distortions."""
+    cols = {"t": t, "input": u + noise * np.std(u) * rng.standard_normal(t.size)}
+    for i in range(n):
+        cols[f"a{i + 1}"] = acc[i] + noise * np.std(acc[i]) * rng.standard_normal(t.size)
+    if family == "sensor_gain":
+        cols[f"a{loc}"] = cols[f"a{loc}"] * (1 + value)
+    if family == "sensor_delay":
+        cols[f"a{loc}"] = np.interp(t - value * 1e-3, t, cols[f"a{loc}"])
+    return cols
+
+
+def _write_records(path, cols):
+    names = list(cols)
+    np.savetxt(path, np.column_stack([cols[c] for c in names]), delimiter=",",
+               header=",".join(names), comments="", fmt=["%.5f"] + ["%.6e"] * (len(names) - 1))
+
+
 def make_case(folder, spec, seed):
     """Write case.yaml, records.csv and truth.json for one benchmark case."""
     rng = np.random.default_rng(seed)
@@ -131,21 +199,20 @@ def make_case(folder, spec, seed):
     dof = spec.get("shaker_floor", 1) - 1
     M, C, K, Kh = true_system(m, k, zeta, family, loc, value)
     k_nominal = k * (1 + rng.uniform(-0.15, 0.15, n)) if spec.get("ordinary", True) else k
-    t, u, acc = _records(M, C, K, Kh, n, excitation, dof, rng,
-                         seconds=spec.get("seconds", SECONDS))
-    noise = 0.01
-    cols = {"t": t, "input": u + noise * np.std(u) * rng.standard_normal(t.size)}
-    for i in range(n):
-        cols[f"a{i + 1}"] = acc[i] + noise * np.std(acc[i]) * rng.standard_normal(t.size)
-    if family == "sensor_gain":
-        cols[f"a{loc}"] = cols[f"a{loc}"] * (1 + value)
-    if family == "sensor_delay":
-        cols[f"a{loc}"] = np.interp(t - value * 1e-3, t, cols[f"a{loc}"])
+    levels = spec.get("levels", 1)
+    if family == "nonlinearity":
+        recs, k3 = _nonlinear_records(M, C, K, n, excitation, dof, rng, loc, value,
+                                      spec.get("seconds", SECONDS))
+    else:
+        recs = [_records(M, C, K, Kh, n, excitation, dof, rng, level=lv,
+                         seconds=spec.get("seconds", SECONDS)) for lv in (1.0, 3.0)[:levels]]
     os.makedirs(folder, exist_ok=True)
-    names = list(cols)
-    np.savetxt(os.path.join(folder, "records.csv"), np.column_stack([cols[c] for c in names]),
-               delimiter=",", header=",".join(names), comments="",
-               fmt=["%.5f"] + ["%.6e"] * (len(names) - 1))
+    files = []
+    for j, (t, u, acc) in enumerate(recs):
+        cols = _noisy(t, u, acc, n, family, loc, value, rng)
+        name = "records.csv" if j == 0 else f"records_level{j + 1}.csv"
+        _write_records(os.path.join(folder, name), cols)
+        files.append(name)
     inp = ({"column": "input", "quantity": "ground_acceleration", "unit": "m/s^2"}
            if excitation == "ground" else
            {"column": "input", "quantity": "force", "unit": "N", "floor": dof + 1})
@@ -157,6 +224,7 @@ def make_case(folder, spec, seed):
                        "stiffness_bounds": [-0.5, 1.0]},
         "damping": {"model": "rayleigh", "zeta": 0.015},
         "data": {"type": "time_histories", "file": "records.csv", "input": inp,
+                 **({"level_files": files[1:]} if len(files) > 1 else {}),
                  "estimator": "H1", "nperseg": NPERSEG, "overlap": 0.5, "window": "hann",
                  "channels": [{"name": f"a{i + 1}", "floor": i + 1, "quantity": "acceleration",
                                "unit": "m/s^2", "column": f"a{i + 1}"} for i in range(n)]},
@@ -184,13 +252,15 @@ def _location(family, loc):
         return {"between": list(loc)}
     if family in ("sensor_gain", "sensor_delay"):
         return {"channel": f"a{loc}"}
+    if family == "nonlinearity":
+        return {"between": [loc - 1, loc]}
     return {"floor": loc}
 
 
 def specs(rng, per_family=2):
     """The benchmark's case list: effect cases per family, null and ordinary cases."""
     out = []
-    for fam in FAMILIES[:-1]:
+    for fam in FAMILIES:
         for r in range(per_family):
             n = int(rng.integers(3, 6))
             ex = ("ground", "force")[r % 2]
@@ -213,11 +283,13 @@ def specs(rng, per_family=2):
                 s.update(location=i, value=float(rng.choice([-0.25, 0.3])))
             elif fam == "sensor_delay":
                 s.update(location=i, value=float(rng.uniform(20.0, 40.0)))
+            elif fam == "nonlinearity":
+                s.update(location=i, value=float(rng.uniform(0.06, 0.1)), levels=2)
             out.append(s)
     for r in range(per_family * 2):
         n = int(rng.integers(3, 6))
         out.append({"storeys": n, "excitation": ("ground", "force")[r % 2], "family": None,
-                    "ordinary": r % 2 == 0})
+                    "ordinary": r % 2 == 0, "levels": 2 if r < 2 else 1})
     return out
 
 

@@ -45,7 +45,9 @@ def main():
         found = res["findings"][0] if res["findings"] else None
         fam_ok = found is not None and found["physics"] == fam
         loc_ok = fam_ok and _same_location(found["location"], truth["location"])
-        before, after = res["fit"]["before"]["held_out_chi2"], res["fit"]["after"]["held_out_chi2"]
+        fb, fa = res["fit"]["before"], res["fit"]["after"]
+        key = "other_level_held_out_chi2" if "other_level_held_out_chi2" in fa else "held_out_chi2"
+        before, after = fb[key], fa[key]
         rows.append({"case": name, "family": fam or "none", "verdict": res["verdict"],
                      "found": found["physics"] if found else "-", "family_ok": fam_ok,
                      "location_ok": loc_ok, "held_out_ratio": after / before,

@@ -21,6 +21,7 @@ CASES = [
     ("nonadjacent_coupling", {"location": (1, 3), "value": 1000.0}, {"between": [1, 3]}),
     ("sensor_gain", {"location": 2, "value": 0.3}, {"channel": "a2"}),
     ("sensor_delay", {"location": 3, "value": 30.0}, {"channel": "a3"}),
+    ("nonlinearity", {"location": 2, "value": 0.08, "levels": 2}, {"between": [1, 2]}),
 ]
 
 
@@ -37,13 +38,16 @@ def test_family_found_at_its_location(tmp_path, family, effect, location):
     found = res["findings"][0]
     assert found["physics"] == family
     assert found["location"] == location
-    assert res["fit"]["after"]["held_out_chi2"] <= 0.5 * res["fit"]["before"]["held_out_chi2"]
+    key = "other_level_held_out_chi2" if family == "nonlinearity" else "held_out_chi2"
+    assert res["fit"]["after"][key] <= 0.5 * res["fit"]["before"][key]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert saved["verdict"] == res["verdict"] and saved["findings"][0]["statement"]
 
 
-@pytest.mark.parametrize("ordinary", [False, True], ids=["null", "ordinary_change"])
-def test_no_missing_physics_stays_adequate(tmp_path, ordinary):
-    res = _run(tmp_path, {"excitation": "force", "family": None, "ordinary": ordinary}, seed=12)
+@pytest.mark.parametrize("ordinary,levels", [(False, 2), (True, 1)],
+                         ids=["null_two_levels", "ordinary_change"])
+def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
+    res = _run(tmp_path, {"excitation": "force", "family": None, "ordinary": ordinary,
+                          "levels": levels}, seed=12)
     assert res["verdict"] == "adequate", res["findings"]
     assert res["findings"] == []
