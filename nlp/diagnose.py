@@ -485,7 +485,9 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
     if verdict == "ambiguous" and not found:
         statements.append("The model does not explain the data within the noise, and no "
                           "candidate family explains the mismatch.")
-    alts, seen = [], {(r["physics"], repr(r["location"])) for r in found}
+    chosen = {(r["physics"], repr(r["location"])) for r in found}
+    absorbed = [a for a in absorbed if (a["physics"], repr(a["location"])) not in chosen]
+    alts, seen = [], set(chosen)
     for r in sorted(alternatives, key=lambda r: r["delta_bic"]):
         key = (r["physics"], repr(r["location"]))
         if key not in seen:
