@@ -83,18 +83,23 @@ def true_system(m, k, zeta, family, loc, value):
     return M, C, K, Kh
 
 
-def _records(M, C, K, Kh, n, excitation, dof, rng, level=1.0, seconds=SECONDS):
-    """Simulated input and absolute floor accelerations (n, N) at the recorders' rate."""
-    # Simulate 8x faster than the recorders sample: the first-order hold of the
-    # simulation then filters the band of interest by less than 0.1 %.
+def _random_input(rng, seconds):
+    """Unit-RMS random input band-limited to 0.3-20 Hz, at 8x the recorders' rate: the
+    first-order hold of the simulation then filters the band of interest by < 0.1 %."""
     fs_sim = 8 * FS
     t = np.arange(0, seconds, 1 / fs_sim)
-    u = rng.standard_normal(t.size)
-    spec = np.fft.rfft(u)
+    spec = np.fft.rfft(rng.standard_normal(t.size))
     fr = np.fft.rfftfreq(t.size, 1 / fs_sim)
     spec[(fr < 0.3) | (fr > 20.0)] = 0
     u = np.fft.irfft(spec, t.size)
-    u = level * u / np.std(u)
+    return t, u / np.std(u)
+
+
+def _records(M, C, K, Kh, n, excitation, dof, rng, level=1.0, seconds=SECONDS):
+    """Simulated input and absolute floor accelerations (n, N) at the recorders' rate."""
+    fs_sim = 8 * FS
+    t, u = _random_input(rng, seconds)
+    u = level * u
     if np.any(Kh):
         # Hysteretic damping has no causal time-domain form: filter the record in
         # the frequency domain with the exact FRF instead (periodic, long record).
@@ -152,13 +157,7 @@ def _nonlinear_records(M, C, K, n, excitation, dof, rng, story, stiffening, seco
     """Records at a low and a high level; k3 makes the story stiffer by `stiffening`
     (equivalent linearisation, 3 k3 E[drift^2]) at the high level."""
     fs_sim = 8 * FS
-    t = np.arange(0, seconds, 1 / fs_sim)
-    u = rng.standard_normal(t.size)
-    spec = np.fft.rfft(u)
-    fr = np.fft.rfftfreq(t.size, 1 / fs_sim)
-    spec[(fr < 0.3) | (fr > 20.0)] = 0
-    u = np.fft.irfft(spec, t.size)
-    u = u / np.std(u)
+    t, u = _random_input(rng, seconds)
     lin = simulate(M, C, K, 3.0 * u, fs_sim, input=excitation, dof=None if excitation == "ground" else dof)
     drift = lin.q[story - 1] - (lin.q[story - 2] if story > 1 else 0.0)
     k_story = K[story - 1, story - 1] if story == n else -K[story - 1, story]
