@@ -87,6 +87,11 @@ class BaseFlexibility:
                 "upper": [5.0 * m, lk + 4.0, 50.0 * c], "scale": [m, 1.0, c],
                 "null": [0.0, lk + 6.0, 0.0]}
 
+    def starts(self, ref):
+        """Start points spread over the base stiffness (the fit has many local minima)."""
+        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), ref["c_ref"]
+        return [[0.5 * m, lk + d, c] for d in (-0.3, 0.0, 0.5, 1.0, 1.5)]
+
     def apply(self, sys, th, ref):
         M, K, C, Kh = (ca.SX(sys[k]) for k in ("M", "K", "C", "Kh"))
         n = M.shape[0]
