@@ -405,19 +405,29 @@ def _adequate(chi, nu, held):
     return chi / nu < 1.5 + 3 * math.sqrt(2 / nu) and held < 2.0
 
 
-def diagnose(cfg, out, log=print, top=4, max_findings=3):
+def _windows(cfg, case, mult):
+    """Points within mult x k half-power bandwidths of the peaks."""
+    if mult == 1:
+        return case.selected
+    c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
+    idx = np.asarray(_half_power(c, case.f, case.H, case.channels, case.target.excitation,
+                                 case.coherence), int)
+    return idx[case.f[idx] > 0]
+
+
+def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     """Diagnose a case; writes out/diagnosis.json and figures; returns the dict.
 
     Forward selection: each round adds the best accepted candidate to the model
     and looks again, until the model explains the data, nothing more is
-    accepted, candidates tie (ambiguous), or max_findings are found.
+    accepted, candidates tie (ambiguous), or max_findings are found. When the
+    fitted windows are explained but the held-out shoulders are not, and no
+    family is accepted, the windows are widened 3x once and the search repeated
+    (the effect lives off the resonances).
     """
     case = assemble(cfg)
-    fit = case.selected
-    cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
-    wide = np.asarray(_half_power(cfg3, case.f, case.H, case.channels, case.target.excitation,
-                                  case.coherence), int)
-    held = np.setdiff1d(wide[case.f[wide] > 0], fit)
+    fit = _windows(cfg, case, widen)
+    held = np.setdiff1d(_windows(cfg, case, 3 * widen), fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
@@ -469,6 +479,11 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3):
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
     if len(found) > 1:
         found, state = _prune(case, target, found, state, n_fit, held, sig_held, log)
+    if (widen == 1 and not found and chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)
+            and not _adequate(chi_b, nu, held_b)):
+        log("the fitted windows are explained but the held-out shoulders are not: "
+            "widening the windows 3x and looking again")
+        return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
     return _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed,
                     cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin)
@@ -536,7 +551,7 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
     if nonlin and nonlin["found"]:
         findings.insert(0, nonlin["found"])
         statements.insert(0, nonlin["found"]["statement"])
-    elif not cfg.data.level_files and verdict != "adequate":
+    elif not cfg.data.level_files and (verdict == "ambiguous" or remaining):
         suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
