@@ -86,3 +86,10 @@ def test_cli_bad_input_exits_2_without_traceback(folder, capsys):
     assert "model.masses[1]" in err and "Traceback" not in err
     assert main(["run", str(folder / "nope.yaml")]) == 2
     assert main(["run", path, "--solver", "newton"]) == 2
+
+
+def test_diagnose_cli_bad_input_exits_2(folder, capsys):
+    path = _write(folder, deep_update(BASE, {"frequencies": {"method": "wavelet"}}))
+    assert main(["diagnose", path, "--out", str(folder / "d")]) == 2
+    err = capsys.readouterr().err
+    assert "frequencies.method" in err and "Traceback" not in err
