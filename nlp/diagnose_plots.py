@@ -25,7 +25,7 @@ def _grid(cells, key):
 
 def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, family):
     """residual_map.png (fitted and held-out, before and after) and frf_diagnosis_<ch>.png."""
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6), squeeze=False)
+    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), squeeze=False, layout="constrained")
     for row, (cells, title) in enumerate(((before, "baseline"), (after, "with added physics"))):
         for col, key in enumerate(("fitted", "held_out")):
             chans, bands, G = _grid(cells, key)
@@ -34,9 +34,10 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
                            aspect="auto")
             ax.set_yticks(range(len(chans)), chans)
             ax.set_xticks(range(len(bands)), [f"{(a + b) / 2:.3g}" for a, b in bands], fontsize=7)
-            ax.set_title(f"{title}: {key.replace('_', '-')} (mean r^2 / sigma^2)", fontsize=9)
-            ax.set_xlabel("band centre [Hz]", fontsize=8)
-    fig.colorbar(im, ax=axes, label="log10 normalised residual")
+            ax.set_title(f"{title}: {key.replace('_', '-')} points", fontsize=9)
+            if row == 1:
+                ax.set_xlabel("band centre [Hz]", fontsize=8)
+    fig.colorbar(im, ax=axes, label="log10 mean (residual / noise)^2")
     save_figure(fig, os.path.join(out, "residual_map.png"))
     lo = case.f[case.selected].min() * 0.7
     hi = min(case.f[-1], case.f[case.selected].max() * 1.3)
