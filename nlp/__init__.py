@@ -14,10 +14,13 @@ problem, codegen    the NLP built once; compiled per-frequency pieces
 search              scatter search over start points
 identify            identifiability (Jacobian SVD, scale null space), errors
 freqsel, estimate   frequency-point selection; FRF estimation from records
-metrics, simulate   FDAC/FRAC/MAC; time-domain replay
+readers             time histories and FRFs from files, units to SI
+metrics, simulate   FDAC/FRAC/MAC; exact-discretisation time simulation
+peakpick, verify    measured modes vs model; time-domain replay
+physics, diagnose   missing-physics families; ``frf-nlp diagnose``
 config, case        typed case file; assembling a case into a problem
-results, plots      result files and figures
-cli                 ``frf-nlp`` command
+results, plots      result files and figures; report (report.html)
+workflow, cli       one run of a case; the ``frf-nlp`` command
 """
 
 __version__ = "0.1.0"
