@@ -1,7 +1,6 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
 from dataclasses import dataclass
-import os
 
 import numpy as np
 import scipy.io

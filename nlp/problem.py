@@ -325,8 +325,10 @@ class UpdatingProblem:
 
     def channel_frfs(self, z, omega):
         """The model's FRF of every channel (with added physics) at omega: (n_ch, N)."""
-        fn = self.frf_fn.map(len(omega))
-        Hr, Hi = fn(np.asarray(z, float), np.asarray(omega, float)[None, :])
+        key = ("frf", len(omega))
+        if key not in self._batch:  # one map per grid size, built once
+            self._batch[key] = self.frf_fn.map(len(omega))
+        Hr, Hi = self._batch[key](np.asarray(z, float), np.asarray(omega, float)[None, :])
         return np.asarray(Hr) + 1j * np.asarray(Hi)
 
     def solve(self, z0=None):

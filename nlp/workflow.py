@@ -73,18 +73,13 @@ def _log_result(result, table, log, tag):
 
 
 def _fdac_of(model, case):
+    """FDAC per channel, FDAC overall and FRAC per channel of a model against a case's data."""
     M, K, C = model
     tg = case.target
     Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
-    per = dict(zip([c.name for c in case.channels], fdac(Ha, tg.H).tolist()))
-    return per, float(fdac_overall(Ha, tg.H))
-
-
-def _frac_of(model, case):
-    M, K, C = model
-    tg = case.target
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
-    return dict(zip([c.name for c in case.channels], frac(Ha, tg.H).tolist()))
+    names = [c.name for c in case.channels]
+    return (dict(zip(names, fdac(Ha, tg.H).tolist())), float(fdac_overall(Ha, tg.H)),
+            dict(zip(names, frac(Ha, tg.H).tolist())))
 
 
 def _modes_of(model, case):
@@ -131,10 +126,10 @@ def run(cfg, out, log=print):
                          "damping_ratios": zeta},
                "fdac": {}, "fdac_overall": {}, "frac": {}, "modes": {}}
     for label, (case, _) in results.items():
-        per, overall = _fdac_of(model, case)
+        per, overall, fr = _fdac_of(model, case)
         summary["fdac"].update(per)
         summary["fdac_overall"][label or "all"] = overall
-        summary["frac"].update(_frac_of(model, case))
+        summary["frac"].update(fr)
         summary["modes"][label or "all"] = _modes_of(model, case)
     if len(results) > 1:
         avg = {}
@@ -154,7 +149,7 @@ def run(cfg, out, log=print):
         if cfg.data.validation_force_floor is not None:
             vcfg = replace(cfg, excitation=ExcitationConfig("force", cfg.data.validation_force_floor))
         vcase = assemble(vcfg, data_file=cfg.data.validation_file)
-        per, overall = _fdac_of(model, vcase)
+        per, overall, _ = _fdac_of(model, vcase)
         summary["validation"] = {"file": cfg.data.validation_file, "fdac": per,
                                  "fdac_overall": overall,
                                  "excitation": {"type": vcase.target.excitation,

@@ -1,6 +1,5 @@
 """The NLP: derivatives, recovery of a known model, both solvers."""
 
-import dataclasses
 
 import numpy as np
 import pytest
