@@ -114,14 +114,6 @@ def update_record(cfg, path):
     return row
 
 
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    raise TypeError(type(x).__name__)
-
-
 def history_table(rows):
     """(names, values (N, P), standard errors (N, P)) of the rows, NaN where a record failed."""
     names = []
@@ -180,7 +172,7 @@ def run_batch(cfg, record_paths, out, workers=1, resume=False, window=None, thre
     """Update ``cfg``'s model from every record into folder ``out``; returns 0 or 130."""
     from .batch_report import plot_trend, write_batch_report
     from .changes import detect_changes
-    from .results import write_atomic, write_json
+    from .results import _jsonable, write_atomic, write_json
 
     os.makedirs(out, exist_ok=True)
     done_file = os.path.join(out, "records.jsonl")
