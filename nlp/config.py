@@ -11,6 +11,7 @@ import os
 import yaml
 
 from .errors import InputError
+from .executors import EXECUTORS
 
 __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
            "ExcitationConfig", "ChannelConfig", "DataConfig", "FrequencyConfig",
@@ -117,6 +118,8 @@ class SearchSection:
     trial_factor: int = 10
     seed: int = 0
     workers: int = 1
+    executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
+    scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
 
 
 @dataclass(frozen=True)
@@ -210,7 +213,8 @@ class _Reader:
 def load_case(path, overrides=None):
     """Read and validate a case file; returns a :class:`CaseConfig`.
 
-    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``.
+    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``,
+        ``executor``, ``scheduler``.
     """
     path = os.path.abspath(path)
     if not os.path.isfile(path):
@@ -494,14 +498,26 @@ def _solver(rd, d):
 
 
 def _search(rd, d):
-    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers"})
+    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers", "executor",
+                                "scheduler"})
     return SearchSection(
         starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
         trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
                                integer=True),
         seed=rd.number(d, "seed", "search.seed", 0, integer=True),
         workers=rd.number(d, "workers", "search.workers", 1, positive=True, integer=True),
+        executor=rd.choice(d, "executor", "search.executor", EXECUTORS, "local"),
+        scheduler=_scheduler(rd.err, d.get("scheduler"), "search.scheduler"),
     )
+
+
+def _scheduler(err, v, key):
+    """A Dask scheduler address (protocol://host:port) or None."""
+    if v is None:
+        return None
+    if not isinstance(v, str) or "://" not in v:
+        raise err(key, "a Dask scheduler address such as tcp://host:8786", v)
+    return v
 
 
 def _apply_overrides(cfg, ov, rd):
@@ -513,6 +529,15 @@ def _apply_overrides(cfg, ov, rd):
             if key != "seed" and v < 1:
                 raise InputError("<arguments>", f"--{key}", "an integer >= 1", v)
             search = replace(search, **{key: int(v)})
+    if ov.get("executor") is not None:
+        search = replace(search, executor=ov["executor"])
+    if ov.get("scheduler") is not None:
+        search = replace(search, scheduler=_scheduler(
+            lambda k, e, g: InputError("<arguments>", k, e, g), ov["scheduler"], "--scheduler"))
+    if search.scheduler is not None and search.executor != "dask":
+        raise InputError("<arguments>" if ov.get("scheduler") else rd.file, "--scheduler"
+                         if ov.get("scheduler") else "search.scheduler",
+                         "executor 'dask' with a scheduler (--executor dask)", search.executor)
     if ov.get("solver") is not None:
         if ov["solver"] not in SOLVERS:
             raise InputError("<arguments>", "--solver", f"one of {list(SOLVERS)}", ov["solver"])

@@ -110,9 +110,12 @@ def summarize(case, problem, search):
                    "starts_requested": search.n_requested, "starts_finished": len(search.results),
                    "interrupted": search.interrupted, "seconds": search.seconds,
                    "starts_within_1pct_of_best": len(near),
-                   "starts": [{"index": i, "f": r.f, "success": r.success, "status": r.status,
+                   "starts_resumed": search.resumed,
+                   # success: converged (only those compete); f is null for a failed solve
+                   "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
+                               "success": r.success, "status": r.status,
                                "iterations": r.iterations, "seconds": r.seconds}
-                              for i, r in enumerate(search.results)]},
+                              for i, r in zip(search.indices, search.results)]},
     }
 
 
