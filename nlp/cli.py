@@ -4,7 +4,8 @@ import argparse
 import os
 import sys
 
-from .errors import InputError
+from .errors import InputError, SearchFailed
+from .executors import EXECUTORS
 
 __all__ = ["main"]
 
@@ -14,9 +15,10 @@ def _run(args):
     from .workflow import run
 
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
-                                "workers": args.workers, "solver": args.solver})
+                                "workers": args.workers, "solver": args.solver,
+                                "executor": args.executor, "scheduler": args.scheduler})
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "results"))
-    return run(cfg, out)
+    return run(cfg, out, resume=args.resume)
 
 
 def _diagnose(args):
@@ -60,6 +62,12 @@ def _parser():
     run.add_argument("--seed", type=int, help="seed of the trial points")
     run.add_argument("--workers", type=int, help="worker processes")
     run.add_argument("--solver", help="ipopt or sqpmethod (overrides the case file)")
+    run.add_argument("--executor", choices=EXECUTORS,
+                     help="where local solves run: local processes (default) or a Dask cluster")
+    run.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                     "--executor dask; without it a LocalCluster of --workers processes)")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted run into "
+                     "the same --out from its checkpoint (DIR.partial/)")
     dg = sub.add_parser("diagnose", help="find what physics the model leaves out")
     dg.add_argument("case", help="case YAML file")
     dg.add_argument("--out", help="output folder (default: diagnosis/ beside the case file)")
@@ -87,8 +95,12 @@ def main(argv=None):
     except InputError as exc:
         print(f"frf-nlp: error: {exc}", file=sys.stderr)
         return 2
+    except SearchFailed as exc:  # exit 3: the data or model, not the command line
+        print(f"frf-nlp: error: {exc}; no result written", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
-        print("frf-nlp: interrupted before any result was ready", file=sys.stderr)
+        print("frf-nlp: interrupted before any result was ready (finished starts are kept "
+              "for --resume)", file=sys.stderr)
         return 130
 
 

@@ -9,11 +9,13 @@ measured input replayed in the time domain when the data are records.
 
 from dataclasses import replace
 import os
+import shutil
 import time
 
 import numpy as np
 
 from .case import _detection_form, assemble, build_problem
+from .checkpoint import Checkpoint, checkpoint_path
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
 from .freqsel import plot_selection
@@ -22,13 +24,14 @@ from .peakpick import compare_modes
 from .plots import plot_frf_overlays
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
+from .executors import Setup
 from .search import SearchConfig, scatter_search
 from .verify import plot_replay, replay
 
 __all__ = ["run"]
 
 
-def _update(cfg, label, channels, out, log):
+def _update(cfg, label, channels, out, log, checkpoint=None):
     case = assemble(cfg, channels=channels)
     tag = f"[{label}] " if label else ""
     log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
@@ -41,7 +44,11 @@ def _update(cfg, label, channels, out, log):
         f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
     s = cfg.search
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                  seed=s.seed, workers=s.workers))
+                                                  seed=s.seed, workers=s.workers,
+                                                  executor=s.executor, scheduler=s.scheduler),
+                            setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
+    if search.resumed:
+        log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
     result = summarize(case, problem, search)
     os.makedirs(out, exist_ok=True)
     write_json(os.path.join(out, "result.json"), result)
@@ -76,7 +83,8 @@ def _fdac_of(model, case):
     """FDAC per channel, FDAC overall and FRAC per channel of a model against a case's data."""
     M, K, C = model
     tg = case.target
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof,
+                      tg.ground_r)
     names = [c.name for c in case.channels]
     # FRAC compares complex FRFs: magnitude-only data have no phase to compare
     fr = frac(Ha, tg.H).tolist() if case.has_phase else [None] * len(names)
@@ -118,14 +126,19 @@ def _table1(results, average):
     return "\n".join(lines) + "\n"
 
 
-def run(cfg, out, log=print):
-    """Run a validated case into folder ``out``; returns the exit status (0 or 130)."""
+def run(cfg, out, log=print, resume=False):
+    """Run a validated case into folder ``out``; returns the exit status (0 or 130).
+
+    Every finished start is kept in ``out.partial/`` (:mod:`nlp.checkpoint`);
+    ``resume`` continues from it, and a completed run removes it.
+    """
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
-        case, result, interrupted = _update(cfg, label, channels, d, log)
+        ckpt = Checkpoint(checkpoint_path(out, label), resume=resume)
+        case, result, interrupted = _update(cfg, label, channels, d, log, ckpt)
         results[label] = (case, result)
         if interrupted:
             break
@@ -195,4 +208,9 @@ def run(cfg, out, log=print):
     write_json(os.path.join(out, "summary.json"), summary)
     path = write_report(out)
     log(f"wrote {out}: summary.json, result.json, parameters.csv, figures, {os.path.basename(path)}")
-    return 130 if interrupted else 0
+    if interrupted:
+        log(f"interrupted: finished starts are kept in {os.path.dirname(checkpoint_path(out))}; "
+            "continue with --resume")
+        return 130
+    shutil.rmtree(os.path.dirname(checkpoint_path(out)), ignore_errors=True)
+    return 0

