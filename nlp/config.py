@@ -563,15 +563,7 @@ def _data(rd, d, base):
         raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
     vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
                        positive=True, integer=True)
-    levels = d.get("level_files") or []
-    if not isinstance(levels, list) or not all(isinstance(x, str) for x in levels):
-        raise rd.err("data.level_files", "a list of file names", levels)
-    level_paths = []
-    for i, x in enumerate(levels):
-        lp = os.path.join(base, x)
-        if not os.path.isfile(lp):
-            raise rd.err(f"data.level_files[{i}]", "an existing file", x)
-        level_paths.append(lp)
+    level_paths = _file_list(rd, d.get("level_files") or [], "data.level_files", base)
     dbref = rd.number(d, "db_reference", "data.db_reference", 1.0, positive=True)
     if "db_reference" in d and fmt not in ("db", "db_magnitude"):
         raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
@@ -589,14 +581,20 @@ def _record_files(rd, d, base, records):
         return []
     if not records:
         raise rd.err("data.records", "records only with type: time_histories", d["records"])
-    v = d["records"]
-    if not isinstance(v, list) or not v or not all(isinstance(x, str) for x in v):
-        raise rd.err("data.records", "a list of record files (relative to the case file)", v)
+    if not d["records"]:
+        raise rd.err("data.records", "a non-empty list of record files", d["records"])
+    return _file_list(rd, d["records"], "data.records", base)
+
+
+def _file_list(rd, v, key, base):
+    """Absolute paths of a list of existing files named relative to the case file."""
+    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+        raise rd.err(key, "a list of file names (relative to the case file)", v)
     out = []
     for i, x in enumerate(v):
         p = os.path.join(base, x)
         if not os.path.isfile(p):
-            raise rd.err(f"data.records[{i}]", "an existing file (relative to the case file)", x)
+            raise rd.err(f"{key}[{i}]", "an existing file (relative to the case file)", x)
         out.append(p)
     return out
 
