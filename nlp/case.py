@@ -1,11 +1,12 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
 from .identify import SCALE_EXPLANATION, scale_null_space
@@ -123,30 +124,55 @@ def _damping(cfg, model):
     return GeneralDamping(C0=C0)
 
 
+_UNIT = {"stiffness": "N/m", "mass": "kg"}
+
+
+def _shown(v):
+    return {"multiplier": v.value} if isinstance(v, Multiplier) else v
+
+
+def _relative(path, key, v, nominal, physical, group):
+    """Relative change theta (Eqns 23-24) of a case value: a physical value (kg, N/m), or
+    ``{multiplier: x}`` for any mass or stiffness. A model whose parameters scale matrix
+    groups has no physical value to give, so a bare number there is refused: the old
+    meaning (a multiplier) would otherwise change silently."""
+    if isinstance(v, Multiplier):
+        return tuple(x - 1 for x in v.value) if isinstance(v.value, tuple) else v.value - 1
+    if not physical:
+        raise InputError(path, key, f"{{multiplier: x}} (this {group} parameter scales a matrix "
+                         f"group of the model and has no value in {_UNIT[group]})", v)
+    return tuple(x / nominal - 1 for x in v) if isinstance(v, tuple) else v / nominal - 1
+
+
 def _parameters(cfg, model, damping):
     pc = cfg.parameters
     path = cfg.path
     params = []
+    physical = cfg.model.type == "shear_frame"  # nominal values in kg and N/m
     for group, names, nominal, rel in (
             ("stiffness", model.alpha_names, model.alpha_nominal, pc.stiffness_bounds),
             ("mass", model.beta_names, model.beta_nominal, pc.mass_bounds)):
         for name, nom in zip(names, nominal):
+            def theta(section, v, name=name, nom=nom):
+                return _relative(path, f"parameters.{section}.{name}", v, nom, physical, group)
             lo, hi = rel
             if name in pc.bounds:
-                lo, hi = (v / nom - 1 for v in pc.bounds[name])
-            init = pc.initial[name] / nom - 1 if name in pc.initial else 0.0
+                lo, hi = theta("bounds", pc.bounds[name])
+            init = theta("initial", pc.initial[name]) if name in pc.initial else 0.0
             fixed = name in pc.fixed
             if fixed:
-                init = pc.fixed[name] / nom - 1
-                if pc.fixed[name] <= 0:
-                    raise InputError(path, f"parameters.fixed.{name}", "a positive value", pc.fixed[name])
+                init = theta("fixed", pc.fixed[name])
+                if init <= -1:
+                    raise InputError(path, f"parameters.fixed.{name}", "a positive value",
+                                     _shown(pc.fixed[name]))
             elif not lo <= init <= hi:
                 raise InputError(path, f"parameters.initial.{name}",
                                  f"a value within the bounds [{nom * (1 + lo):g}, {nom * (1 + hi):g}]",
                                  nom * (1 + init))
             if lo <= -1:
                 raise InputError(path, f"parameters.bounds.{name}", "a lower bound > 0", nom * (1 + lo))
-            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom)))
+            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom),
+                                    unit=_UNIT[group] if physical else "x nominal"))
     d = cfg.damping
     if isinstance(damping, GeneralDamping):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
@@ -154,6 +180,11 @@ def _parameters(cfg, model, damping):
         lo_d, hi_d = damping.default_bounds()
     scales = damping.initial() if isinstance(damping, ModalDamping) else np.ones(len(damping.names))
     for name, init, lo, hi, s in zip(damping.names, damping.initial(), lo_d, hi_d, scales):
+        for section in ("fixed", "initial", "bounds"):
+            if isinstance(getattr(pc, section).get(name), Multiplier):
+                raise InputError(path, f"parameters.{section}.{name}", "a value in the damping "
+                                 "model's own units (damping parameters have no nominal value "
+                                 "to multiply)", "{multiplier: ...}")
         if name in pc.bounds:
             lo, hi = pc.bounds[name]
         fixed = name in pc.fixed
@@ -176,8 +207,7 @@ def _parameters(cfg, model, damping):
             if nm in tie_of:
                 raise InputError(path, f"parameters.tie.{label}", "each parameter in one tie only", nm)
             tie_of[nm] = label
-    params = [Parameter(p.name, p.group, p.initial, p.lower, p.upper, p.fixed, tie_of.get(p.name),
-                        p.scale, p.nominal) for p in params]
+    params = [replace(p, tie=tie_of.get(p.name)) for p in params]
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 

@@ -14,7 +14,7 @@ from .errors import InputError
 from .executors import EXECUTORS
 
 __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
-           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "FrequencyConfig",
+           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "Multiplier", "FrequencyConfig",
            "ObjectiveConfig", "SolverSection", "SearchSection"]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
@@ -42,12 +42,21 @@ class ModelConfig:
 
 
 @dataclass(frozen=True)
+class Multiplier:
+    """A value stated as a multiple of the nominal one: ``{multiplier: x}`` (a number)
+    or, for bounds, ``{multiplier: [lo, hi]}`` (a pair)."""
+
+    value: object
+
+
+@dataclass(frozen=True)
 class ParameterConfig:
     stiffness_bounds: tuple = (-0.5, 1.0)   # relative change
     mass_bounds: tuple = (-0.5, 1.0)
-    fixed: dict = field(default_factory=dict)     # name -> physical value
-    initial: dict = field(default_factory=dict)   # name -> physical value
-    bounds: dict = field(default_factory=dict)    # name -> (lo, hi) physical
+    # Values in physical units (kg, N/m; damping in its model's units) or Multiplier
+    fixed: dict = field(default_factory=dict)     # name -> value
+    initial: dict = field(default_factory=dict)   # name -> value
+    bounds: dict = field(default_factory=dict)    # name -> (lo, hi)
     ties: dict = field(default_factory=dict)      # label -> [names]
     total_mass: float = None
 
@@ -389,9 +398,10 @@ def _parameters(rd, d):
             out[key] = (lo, hi)
     for key in ("fixed", "initial"):
         m = rd.mapping(d, f"parameters.{key}")
-        out[key] = {str(k): rd.number(m, k, f"parameters.{key}.{k}", required=True) for k in m}
+        out[key] = {str(k): _value_or_multiplier(rd, m, k, f"parameters.{key}.{k}") for k in m}
     bm = rd.mapping(d, "parameters.bounds")
-    out["bounds"] = {str(k): rd.interval(v, f"parameters.bounds.{k}") for k, v in bm.items()}
+    out["bounds"] = {str(k): _value_or_multiplier(rd, bm, k, f"parameters.bounds.{k}", pair=True)
+                     for k in bm}
     tm = rd.mapping(d, "parameters.tie")
     ties = {}
     for label, names in tm.items():
@@ -401,6 +411,24 @@ def _parameters(rd, d):
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
     return ParameterConfig(**out)
+
+
+def _value_or_multiplier(rd, m, k, path, pair=False):
+    """A physical value (a number, or [lo, hi] for bounds) or ``{multiplier: ...}``."""
+    v = m[k]
+    if isinstance(v, dict):
+        rd.check_keys(v, path, {"multiplier"})
+        if "multiplier" not in v:
+            raise rd.err(path, "{multiplier: value}", v)
+        if pair:
+            lo, hi = rd.interval(v["multiplier"], f"{path}.multiplier")
+            if lo <= 0:
+                raise rd.err(f"{path}.multiplier", "multipliers > 0", list(v["multiplier"]))
+            return Multiplier((lo, hi))
+        return Multiplier(rd.number(v, "multiplier", f"{path}.multiplier", positive=True))
+    if pair:
+        return rd.interval(v, path)
+    return rd.number(m, k, path, required=True)
 
 
 def _damping(rd, d, n):

@@ -69,7 +69,7 @@ def summarize(case, problem, search):
     for i, p in enumerate(params.params):
         scale = p.nominal if p.nominal is not None else 1.0
         rows.append({
-            "name": p.name, "group": p.group, "unit": UNITS[p.group],
+            "name": p.name, "group": p.group, "unit": p.unit or UNITS[p.group],
             "initial": _physical(p, theta0[i]), "updated": _physical(p, theta[i]),
             "relative_change": float(theta[i]) if p.nominal is not None else None,
             "lower": _physical(p, p.lower), "upper": _physical(p, p.upper),
