@@ -1,5 +1,6 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,10 @@ class Case:
     selected: np.ndarray     # indices into f used in the objective
     target: Target
     coherence: np.ndarray = None   # (n_ch, n_f) when estimated from records
-    records: object = None         # readers.TimeHistories when the data are records
+    records: object = None         # readers.TimeHistories when the data are records (the first)
+    n_averages: int = 1            # Welch segments averaged in the estimate (all records)
+    quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
+    has_phase: bool = True         # False for magnitude-only FRF files
 
 
 # Imported models up to this size run on the dense symbolic FRF; larger ones stay sparse.
@@ -177,29 +181,82 @@ def _parameters(cfg, model, damping):
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
-def _read_data(cfg, path=None):
-    """(f, H, coherence, records) of the case's data file (or another test's)."""
+def _record_spec(d):
+    """Channel specs for readers.read_time_histories: the input, then each channel."""
+    inp = d.input
+    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"],
+                          "from": inp.get("from"), "scale": inp.get("scale", 1.0),
+                          "sign": inp.get("sign", 1)}}
+    for c in d.channels:
+        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit,
+                        "scale": c.scale, "sign": c.sign}
+    return {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
+
+
+def _read_records(cfg, paths):
+    """Records of the case (screened, and repaired when asked), the FRF estimate over
+    all their segments, and the quality report."""
+    from .quality import screen_records
+
     d = cfg.data
-    path = path or d.file
+    spec = _record_spec(d)
+    xs, ys, reports, first = [], [], [], None
+    for path in paths:
+        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
+            raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
+                             rec.fs)
+        sc = d.screen
+        data, rep = screen_records(rec.data, rec.fs, remove=sc.remove,
+                                   spike_threshold=sc.spike_threshold,
+                                   dropout_min_samples=sc.dropout_min_samples, t0=float(rec.t[0]))
+        if sc.remove:
+            rec = type(rec)(t=rec.t, fs=rec.fs, data=data)
+        first = first or rec
+        reports.append((path, rep))
+        xs.append(rec.data["__input__"])
+        ys.append(np.array([rec.data[c.name] for c in d.channels]))
+    n = min(x.size for x in xs)
+    nperseg = n if d.nperseg == "all" else d.nperseg
+    noverlap = None if nperseg is None else int(d.overlap * nperseg)
+    if nperseg is None:  # the default segment, with the case's overlap (not scipy's half)
+        from .estimate import _default_nperseg
+        nperseg = _default_nperseg(n)
+        noverlap = int(d.overlap * nperseg)
+    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                       noverlap=noverlap, window=d.window, source=paths[0])
+    return est, first, reports
+
+
+def _read_data(cfg, path=None):
+    """(f, H, coherence, records, n_averages, quality) of the case's data (or another test's)."""
+    d = cfg.data
     if d.type == "frf":
+        path = path or d.file
         fmt = d.format
         if fmt == "auto":
             fmt = "npz" if path.endswith(".npz") else "complex"
-        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex")
-        return f, H * d.unit_factor, None, None
-    inp = d.input
-    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"]}}
-    for c in d.channels:
-        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit}
-    spec = {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
-    rec = read_time_histories(path, spec)
-    x = rec.data["__input__"]
-    y = np.array([rec.data[c.name] for c in d.channels])
-    nperseg = x.size if d.nperseg == "all" else d.nperseg
-    noverlap = None if nperseg is None else int(d.overlap * nperseg)
-    est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg, noverlap=noverlap,
-                       window=d.window, source=path)
-    return est.f, est.H, est.coherence, rec
+        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex", db_reference=d.db_reference)
+        return f, H * d.unit_factor, None, None, 1, None
+    paths = [path] if path else list(d.records or (d.file,))
+    est, rec, reports = _read_records(cfg, paths)
+    return est.f, est.H, est.coherence, rec, est.n_averages, _merge_quality(reports)
+
+
+def _merge_quality(reports):
+    """One report over all records (file named in each glitch's channel when several)."""
+    from .quality import QualityReport
+
+    if len(reports) == 1:
+        return reports[0][1]
+    glitches = []
+    for path, rep in reports:
+        tag = os.path.basename(path)
+        glitches += [type(g)(f"{tag}:{g.channel}", g.kind, g.start, g.stop, g.time_s)
+                     for g in rep.glitches]
+    return QualityReport(tuple(glitches), sum(r.n_samples for _, r in reports), reports[0][1].removed,
+                         reports[0][1].settings)
 
 
 def _detection_form(f, H, channels, excitation):
@@ -263,7 +320,7 @@ def assemble(cfg, channels=None, data_file=None):
     n = model.n
     damping = _damping(cfg, model)
     params = _parameters(cfg, model, damping)
-    f, H, coherence, records = _read_data(cfg, data_file)
+    f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
     force_dof = None
     if ex.type == "force":
@@ -289,9 +346,13 @@ def assemble(cfg, channels=None, data_file=None):
                              "motion", c.output)
         chans.append(Channel(c.name, dof, c.output))
         rows.append(c.column if cfg.data.type == "frf" else i)
+    gains = np.array([c.scale * c.sign for c in cfg.data.channels
+                      if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
     H = H[rows]
+    if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
+        H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
@@ -306,7 +367,7 @@ def assemble(cfg, channels=None, data_file=None):
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records)
+                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase)
 
 
 def build_problem(case):
