@@ -166,7 +166,9 @@ def converged(problem, res):
 def solve_start(problem, z0):
     """One local solve that never raises: a failure is a result with f = inf.
 
-    ``success`` of the returned result means :func:`converged`.
+    ``success`` of the returned result means :func:`converged`. A solve that
+    stopped without converging keeps the objective evaluated at the point it
+    returned (inf when that is not finite), never the solver's own report.
     """
     from .problem import LocalResult
 
@@ -180,7 +182,12 @@ def solve_start(problem, z0):
                            seconds=time.perf_counter() - t0, z0=np.asarray(z0, float))
     ok = converged(problem, res)
     f = res.f if np.isfinite(res.f) and np.all(np.isfinite(res.z)) else np.inf
-    return replace(res, success=ok, f=float(f))
+    if not ok and np.isfinite(f):
+        # a solver that gave up may report anything (IPOPT: f = 0 after an invalid
+        # number); keep only a true evaluation at the point it returned
+        with np.errstate(all="ignore"):
+            f = problem.objective(res.z)
+    return replace(res, success=ok, f=float(f) if np.isfinite(f) else np.inf)
 
 
 def _solve_item(problem, item):
