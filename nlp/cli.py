@@ -4,7 +4,8 @@ import argparse
 import os
 import sys
 
-from .errors import InputError
+from .errors import InputError, SearchFailed
+from .executors import EXECUTORS
 
 __all__ = ["main"]
 
@@ -14,9 +15,10 @@ def _run(args):
     from .workflow import run
 
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
-                                "workers": args.workers, "solver": args.solver})
+                                "workers": args.workers, "solver": args.solver,
+                                "executor": args.executor, "scheduler": args.scheduler})
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "results"))
-    return run(cfg, out)
+    return run(cfg, out, resume=args.resume)
 
 
 def _diagnose(args):
@@ -35,11 +37,12 @@ def _batch(args):
     from .batch import find_records, run_batch
     from .config import load_case
 
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
-                                "solver": None})
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": args.workers,
+                                "solver": None, "executor": args.executor,
+                                "scheduler": args.scheduler})
     records = find_records(args.records)
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "batch"))
-    return run_batch(cfg, records, out, workers=args.workers or 1, resume=args.resume)
+    return run_batch(cfg, records, out, resume=args.resume)
 
 
 def _report(args):
@@ -60,6 +63,12 @@ def _parser():
     run.add_argument("--seed", type=int, help="seed of the trial points")
     run.add_argument("--workers", type=int, help="worker processes")
     run.add_argument("--solver", help="ipopt or sqpmethod (overrides the case file)")
+    run.add_argument("--executor", choices=EXECUTORS,
+                     help="where local solves run: local processes (default) or a Dask cluster")
+    run.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                     "--executor dask; without it a LocalCluster of --workers processes)")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted run into "
+                     "the same --out from its checkpoint (DIR.partial/)")
     dg = sub.add_parser("diagnose", help="find what physics the model leaves out")
     dg.add_argument("case", help="case YAML file")
     dg.add_argument("--out", help="output folder (default: diagnosis/ beside the case file)")
@@ -72,6 +81,10 @@ def _parser():
     bt.add_argument("--starts", type=int, help="local solves per record")
     bt.add_argument("--seed", type=int, help="seed of the trial points")
     bt.add_argument("--workers", type=int, help="records updated at once (worker processes)")
+    bt.add_argument("--executor", choices=EXECUTORS, help="where records run: local processes "
+                    "(default) or a Dask cluster")
+    bt.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                    "--executor dask; without it a LocalCluster of --workers processes)")
     bt.add_argument("--resume", action="store_true", help="keep the records an interrupted "
                     "batch finished and update only the rest")
     rep = sub.add_parser("report", help="rebuild report.html of a finished run folder")
@@ -87,8 +100,12 @@ def main(argv=None):
     except InputError as exc:
         print(f"frf-nlp: error: {exc}", file=sys.stderr)
         return 2
+    except SearchFailed as exc:  # exit 3: the data or model, not the command line
+        print(f"frf-nlp: error: {exc}; no result written", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
-        print("frf-nlp: interrupted before any result was ready", file=sys.stderr)
+        print("frf-nlp: interrupted before any result was ready (finished starts are kept "
+              "for --resume)", file=sys.stderr)
         return 130
 
 
