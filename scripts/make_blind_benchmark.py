@@ -28,7 +28,7 @@ from the test description only (`case_yaml`: the design model, the excitation
 band as the frequency range, the sensors), and truth.json, which only
 scripts/score_blind.py reads.
 
-    python scripts/make_blind_benchmark.py --out blind --seed 101 [--only 0-11]
+    python scripts/make_blind_benchmark.py --out blind --seed SEED [--only 0-11] [--check]
 
 Seeds: see the README ("Blind benchmark"). The case list and every random draw
 come from --seed.
@@ -358,7 +358,10 @@ def case_yaml(name, desc):
     excitation band as the frequency range, the sensors as channels."""
     n = desc["storeys"]
     ground = desc["excitation"] == "ground"
-    params = {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.15, 0.15]}
+    params = {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.5, 1.0]}
+    if desc.get("prior"):
+        # the stated uncertainty of the design values (an added mass lands far outside it)
+        params["prior"] = {"masses": desc["prior"][0], "stiffnesses": desc["prior"][1]}
     if ground:
         params["total_mass"] = desc["weighed_total_mass"]
     chans = []
@@ -447,7 +450,7 @@ def _draw_location(rng, family, n):
     return None
 
 
-def make_case(folder, spec, seed, base_channel=True, residual="log_magnitude"):
+def make_case(folder, spec, seed, base_channel=True, residual="log_magnitude", prior=None):
     """Simulate one test (or two levels) and write records, case.yaml and truth.json."""
     rng = np.random.default_rng(seed)
     n = spec["storeys"]
@@ -538,7 +541,7 @@ def make_case(folder, spec, seed, base_channel=True, residual="log_magnitude"):
             + ("; the whole frame weighed" if ground else ""))
     desc = {"storeys": n, "excitation": spec["excitation"], "force_floor": test["force_floor"],
             "route": route, "signal": spec["signal"], "f0": f0, "f1": f1, "lvdt_floors": lvdt,
-            "base_channel": base_channel, "level_files": files[1:], "nperseg": nperseg,
+            "base_channel": base_channel, "level_files": files[1:], "nperseg": nperseg, "prior": prior,
             "m_design": st["m_design"], "k_design": st["k_design"], "residual": residual,
             "weighed_total_mass": round(float(np.trace(M[:n, :n])), 3), "text": text}
     with open(os.path.join(folder, "case.yaml"), "w") as fh:
@@ -643,11 +646,14 @@ def _selection(text, n):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="blind")
-    ap.add_argument("--seed", type=int, default=101)
+    ap.add_argument("--seed", type=int, required=True,
+                    help="development: 0-99; scoring: fixed after the code freeze (README)")
     ap.add_argument("--only", help="case numbers, e.g. 0-11 or 3,17,40")
     ap.add_argument("--base-channel", action="store_true",
                     help="list the table accelerometer (floor 0) in the shake-table case files "
                          "(the records always carry it)")
+    ap.add_argument("--prior", help="relative 1-sigma uncertainty of the design masses and "
+                    "stiffnesses, e.g. 0.1,0.3, written as parameters.prior")
     ap.add_argument("--check", action="store_true",
                     help="after writing, compare each linear case's FRF estimate with the exact FRF")
     ap.add_argument("--residual", default="log_magnitude",
@@ -659,7 +665,8 @@ def main():
         s = all_specs[k]
         name = case_name(k, s)
         make_case(os.path.join(a.out, name), s, a.seed * 1000 + k,
-                  base_channel=a.base_channel, residual=a.residual)
+                  base_channel=a.base_channel, residual=a.residual,
+                  prior=[float(x) for x in a.prior.split(",")] if a.prior else None)
         msg = check_case(os.path.join(a.out, name)) if a.check else ""
         print(f"wrote {a.out}/{name}{msg}", flush=True)
 
