@@ -200,3 +200,31 @@ def test_same_best_on_every_executor(case_path, tmp_path):
     for p, spec, th in zip(res["parameters"], case.params.params, theta):
         expected = spec.nominal * (1 + th) if spec.nominal is not None else th
         assert p["updated"] == pytest.approx(expected, rel=1e-9, abs=1e-12), p["name"]
+
+
+def test_checkpoint_resume_ignores_torn_line_and_refuses_another_search(problem, tmp_path):
+    from nlp.checkpoint import Checkpoint
+    from nlp.errors import InputError
+    from nlp.search import solve_start, start_points
+
+    cfg = SearchConfig(starts=4, seed=1)
+    starts, _ = start_points(problem, cfg)
+    path = str(tmp_path / "out.partial" / "checkpoint.jsonl")
+    ck = Checkpoint(path)
+    assert ck.open(problem, cfg, starts) == {}
+    res = solve_start(problem, starts[2])
+    ck.append(2, res)
+    ck.close()
+    with open(path, "a") as fh:
+        fh.write('{"start": 3, "f": 0.1')  # a line cut by a kill
+    again = Checkpoint(path, resume=True)
+    got = again.open(problem, cfg, starts)
+    again.close()
+    assert list(got) == [2] and got[2].f == res.f and np.array_equal(got[2].z, res.z)
+    for other in (SearchConfig(starts=4, seed=2), SearchConfig(starts=5, seed=1)):
+        s2, _ = start_points(problem, other)
+        with pytest.raises(InputError, match="--resume"):
+            Checkpoint(path, resume=True).open(problem, other, s2)
+    with pytest.raises(InputError, match="there is none"):
+        Checkpoint(str(tmp_path / "none" / "checkpoint.jsonl"), resume=True).open(problem, cfg,
+                                                                                   starts)
