@@ -5,9 +5,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.io
 
-from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .damping import (DashpotDamping, GeneralDamping, ModalDamping, ModalGeneralDamping,
+                      RayleighDamping, band_modes, rayleigh_from_ratios)
 from .errors import InputError
 from .freqsel import select_frequencies
+from .frf_backends import choose as choose_backend
+from .frf_backends import reduced
+from .frf_backends.sparse import SparseFRF
+from .frf_backends.system import LinearSystem
 from .identify import SCALE_EXPLANATION, scale_null_space
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
@@ -69,13 +74,25 @@ def _load_model(cfg):
                            dof_names=tuple(f"dof{i + 1}" for i in range(n)))
 
 
-def _damping(cfg, model):
+def _damping(cfg, model, f_max=None):
     d = cfg.damping
     M0, K0 = model.M0, model.K0
     if d.a0 is not None:
         a0, a1 = d.a0, d.a1
+    elif d.model in ("modal_general", "dashpots") or model.n > 400:
+        a0, a1 = _rayleigh_band(cfg, model, f_max)
     else:
         a0, a1 = rayleigh_from_ratios(M0, K0, d.zeta)
+    if d.model == "modal_general":
+        modes = d.modes or _band_mode_numbers(model, f_max)
+        z0 = d.modal_zeta or (d.zeta,) * len(modes)
+        if len(z0) != len(modes):
+            raise InputError(cfg.path, "damping.modal_zeta", f"{len(modes)} ratios, one per mode "
+                             f"in damping.modes {list(modes)}", list(z0))
+        return ModalGeneralDamping.from_model(M0, K0, modes, z0, a0, a1)
+    if d.model == "dashpots":
+        return DashpotDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3,
+                              K_groups=tuple(model.K_infl), group_names=tuple(model.alpha_names))
     if d.model == "rayleigh":
         return RayleighDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3)
     if d.model == "modal":
@@ -86,6 +103,22 @@ def _damping(cfg, model):
         raise InputError(cfg.path, "damping.matrix" if d.matrix is not None else "damping",
                          "a symmetric positive definite initial damping matrix")
     return GeneralDamping(C0=C0)
+
+
+def _band_mode_numbers(model, f_max):
+    """1-based numbers of the nominal modes below 1.1 f_max (at least one)."""
+    omega, _ = band_modes(model.M0, model.K0, min(model.n, 30))
+    k = int(np.sum(omega / (2 * np.pi) <= 1.1 * f_max)) if f_max else omega.size
+    return tuple(range(1, max(k, 1) + 1))
+
+
+def _rayleigh_band(cfg, model, f_max):
+    """Rayleigh (a0, a1) with ratio damping.zeta at the first and the last band mode."""
+    modes = _band_mode_numbers(model, f_max)
+    omega, _ = band_modes(model.M0, model.K0, max(modes[-1], 2))
+    wi, wj = omega[0], omega[max(modes[-1], 2) - 1]
+    z = cfg.damping.zeta
+    return 2 * z * wi * wj / (wi + wj), 2 * z / (wi + wj)
 
 
 def _parameters(cfg, model, damping):
@@ -113,7 +146,7 @@ def _parameters(cfg, model, damping):
                 raise InputError(path, f"parameters.bounds.{name}", "a lower bound > 0", nom * (1 + lo))
             params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom)))
     d = cfg.damping
-    if isinstance(damping, GeneralDamping):
+    if isinstance(damping, (GeneralDamping, ModalGeneralDamping)):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
     else:
         lo_d, hi_d = damping.default_bounds()
@@ -230,8 +263,6 @@ def assemble(cfg, channels=None, data_file=None):
     """
     model = _load_model(cfg)
     n = model.n
-    damping = _damping(cfg, model)
-    params = _parameters(cfg, model, damping)
     f, H, coherence, records = _read_data(cfg, data_file)
     ex = cfg.excitation
     if ex.type == "force" and ex.floor > n:
@@ -259,6 +290,8 @@ def assemble(cfg, channels=None, data_file=None):
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
+    damping = _damping(cfg, model, float(f[idx].max()))
+    params = _parameters(cfg, model, damping)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type,
@@ -277,12 +310,43 @@ def build_problem(case):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
-        return UpdatingProblem(case.model, case.damping, case.params, case.target,
-                               residual=cfg.objective.residual, solver=solver,
-                               total_mass=cfg.parameters.total_mass)
+        backend = choose_backend(cfg.model.frf_backend, case.model.n)
+        basis, info = _reduced_basis(case) if backend == "reduced" else (None, None)
+        problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                  residual=cfg.objective.residual, solver=solver,
+                                  total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                  basis=basis)
+        problem.reduced_info = info
+        return problem
     except RuntimeError as exc:  # CasADi rejects an option: a case-file mistake
         raise InputError(cfg.path, "solver.options", f"options that CasADi's {cfg.solver.name} "
                          f"accepts ({_casadi_reason(str(exc))})") from None
+
+
+def _reduced_basis(case):
+    """The reduced basis, after checking its FRF against the exact one at the initial model.
+
+    Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
+    over the case's frequencies exceeds the data noise (median over channels
+    of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
+    """
+    from .diagnose import noise_sigma  # diagnose builds on this module
+
+    tg = case.target
+    full = LinearSystem.from_model(case.model, case.damping, tg)
+    psi = reduced.basis(full, float(tg.omega.max()))
+    z0 = case.params.z0
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, tg.omega)
+    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
+    rms, worst = reduced.log_error(exact, small.frf(z0, tg.omega), tg.weight)
+    noise = float(np.median(noise_sigma(case, case.selected)))
+    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise}
+    if rms > noise:
+        raise InputError(case.config.path, "model.frf_backend",
+                         f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "
+                         f"exact FRF by {rms:.3g} (RMS of ln|H| on the case's frequencies), more "
+                         f"than the data noise {noise:.3g}", "reduced")
+    return psi, info
 
 
 def _casadi_reason(text):

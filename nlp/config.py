@@ -19,6 +19,7 @@ __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "Damping
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
+FRF_BACKENDS = ("auto", "dense", "sparse", "reduced")   # nlp.frf_backends.BACKENDS
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,7 @@ class ModelConfig:
     masses: tuple = ()             # shear_frame: kg per floor
     stiffnesses: tuple = ()        # shear_frame: N/m per story
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
+    frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,7 @@ class ParameterConfig:
 
 @dataclass(frozen=True)
 class DampingConfig:
-    model: str = "general"                 # general | rayleigh | modal
+    model: str = "general"                 # general | rayleigh | modal | modal_general | dashpots
     zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n
     a0: float = None
     a1: float = None
@@ -50,6 +52,7 @@ class DampingConfig:
     modal_zeta: tuple = None               # modal: initial ratios
     diag_factor: float = 30.0
     offdiag: float = 3.0
+    modes: tuple = None                    # modal_general: 1-based nominal modes (default: the band's)
 
 
 @dataclass(frozen=True)
@@ -248,8 +251,9 @@ def load_case(path, overrides=None):
 
 
 def _model(rd, d, base):
-    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file"})
+    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "frf_backend"})
     kind = rd.choice(d, "type", "model.type", ("shear_frame", "matrices"), "shear_frame")
+    backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
     if kind == "shear_frame":
         if "masses" not in d:
             raise rd.err("model.masses", "a list of floor masses in kg (required)")
@@ -260,13 +264,13 @@ def _model(rd, d, base):
         if len(k) != len(m):
             raise rd.err("model.stiffnesses", f"{len(m)} values, one per story like model.masses",
                          f"{len(k)} values")
-        return ModelConfig(type=kind, masses=m, stiffnesses=k)
+        return ModelConfig(type=kind, masses=m, stiffnesses=k, frf_backend=backend)
     if "file" not in d:
         raise rd.err("model.file", "a .npz or .mat file with M0, K0, M_infl, K_infl")
     f = os.path.join(base, str(d["file"]))
     if not os.path.isfile(f):
         raise rd.err("model.file", "an existing file", d["file"])
-    return ModelConfig(type=kind, file=f)
+    return ModelConfig(type=kind, file=f, frf_backend=backend)
 
 
 def _parameters(rd, d):
@@ -298,8 +302,9 @@ def _parameters(rd, d):
 
 def _damping(rd, d, n):
     rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
-                                 "diag_factor", "offdiag"})
-    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+                                 "diag_factor", "offdiag", "modes"})
+    model = rd.choice(d, "model", "damping.model",
+                      ("general", "rayleigh", "modal", "modal_general", "dashpots"), "general")
     out = dict(model=model)
     out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
     out["a0"] = rd.number(d, "a0", "damping.a0")
@@ -318,8 +323,17 @@ def _damping(rd, d, n):
         if n is not None and len(mat) != n:
             raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
         out["matrix"] = mat
+    if "modes" in d:
+        modes = rd.numbers(d["modes"], "damping.modes", positive=True)
+        if any(int(k) != k for k in modes) or (n is not None and max(modes) > n) \
+                or len(set(modes)) != len(modes):
+            raise rd.err("damping.modes", f"distinct mode numbers from 1 to {n}", d["modes"])
+        out["modes"] = tuple(sorted(int(k) for k in modes))
     if "modal_zeta" in d:
-        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+        length = len(out["modes"]) if model == "modal_general" and "modes" in out else \
+            (None if model == "modal_general" else n)
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=length,
+                                       positive=True)
     out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
     out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
     if out["diag_factor"] <= 1:
