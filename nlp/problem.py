@@ -335,7 +335,9 @@ class UpdatingProblem:
             return ev.cached(x, p.tobytes(), self._data(p))
 
         def f_only(x, p):
-            r, _ = ev.residuals(np.asarray(x, float).ravel(), self._data(p), jacobian=False)
+            # with J too: IPOPT asks for the gradient at the point it accepts, and the
+            # adjoint solves cost little next to the factorisations
+            r, _ = rj(x, p)
             return 0.5 * float(r @ r)
 
         def grad(x, p):
@@ -344,7 +346,7 @@ class UpdatingProblem:
 
         def hess(x, p, lam_f, lam_g):
             _, J = rj(x, p)
-            H = float(lam_f) * (J.T @ J)
+            H = float(np.ravel(lam_f)[0]) * (J.T @ J)
             return np.triu(H) if ipopt else H
 
         dense = ca.Sparsity.dense

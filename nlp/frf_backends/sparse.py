@@ -128,10 +128,19 @@ class SparseFRF:
         self.VK = self.pat.stack(2, 2 + na)
         self.VM = self.pat.stack(2 + na, 2 + na + nb)
         self.VD = self.pat.stack(2 + na + nb, len(mats))
-        self.bil_K = _Bilinear(system.K_infl, n)
-        self.bil_M = _Bilinear(system.M_infl, n)
+        # sensitivities only for the parameters that move (free, or tied to a variable)
+        free = np.any(self.T != 0, axis=1)
+        self.free_a = np.nonzero(free[sa])[0]
+        self.free_b = np.nonzero(free[sb])[0]
+        self.free_d = np.nonzero(free[sd])[0]
+        # contiguous d theta_free / d z; real and imaginary parts go through BLAS separately
+        self.Tt_free = np.ascontiguousarray(np.vstack([
+            self.T[sa][self.free_a], self.T[sb][self.free_b], self.T[sd][self.free_d]]).T)
+        self.bil_K = _Bilinear([system.K_infl[i] for i in self.free_a], n)
+        self.bil_M = _Bilinear([system.M_infl[i] for i in self.free_b], n)
         self.bil_D = _Bilinear(system.dashpots, n)
         self.B_infl = np.array(system.b_infl).reshape(len(system.b_infl), n)
+        self.B_free = self.B_infl[self.free_b]
         self._choose_solver()
         self._last = None
 
@@ -215,14 +224,14 @@ class SparseFRF:
         if not jacobian:
             return H
         Lam = X[:, 1:, :]
-        dHq = np.zeros((self.params.n_theta, Hq.shape[0], w.size), complex)
-        dHq[self.sa] = -(1 + jw * cK) * self.bil_K(q, Lam)
-        if self.nb:
-            dHq[self.sb] = (-(-(w ** 2) + jw * cM) * self.bil_M(q, Lam)
-                            + np.einsum("rn,nck->rck", self.B_infl, Lam))
-        if self.sd.stop > self.sd.start:
-            M = sys.M0 + sum(bi * A for bi, A in zip(beta, sys.M_infl))
-            K = sys.K0 + sum(ai * A for ai, A in zip(alpha, sys.K_infl))
+        parts = [-(1 + jw * cK) * self.bil_K(q, Lam)]
+        if self.free_b.size:
+            parts.append(-(-(w ** 2) + jw * cM) * self.bil_M(q, Lam)
+                         + np.einsum("rn,nck->rck", self.B_free, Lam))
+        if self.free_d.size:
+            P = self.pat.P
+            M = sp.csc_matrix((vM, P.indices, P.indptr), shape=P.shape)
+            K = sp.csc_matrix((vK, P.indices, P.indptr), shape=P.shape)
             PM = np.einsum("nck,nk->ck", Lam, M @ q)
             PK = np.einsum("nck,nk->ck", Lam, K @ q)
             dB = d_jac[0][:, None, None] * PM + d_jac[1][:, None, None] * PK
@@ -233,9 +242,13 @@ class SparseFRF:
                 dB = dB + np.einsum("sj,sck->jck", d_jac[2:2 + m * m], O)
             if self.nD:
                 dB = dB + np.einsum("lj,lck->jck", d_jac[2 + m * m:], self.bil_D(q, Lam))
-            dHq[self.sd] = -jw * dB
+            parts.append(-jw * dB[self.free_d])
+        dHq = np.concatenate(parts, axis=0)  # (free theta, n_ch, N)
         dH = fac[None] * dHq
-        dHz = np.einsum("tck,tj->jck", dH, self.T)
+        shape = dH.shape
+        # a complex array viewed as interleaved floats: one contiguous real BLAS product
+        flat = np.ascontiguousarray(dH.reshape(shape[0], -1)).view(float)
+        dHz = np.ascontiguousarray(self.Tt_free @ flat).view(complex).reshape(-1, *shape[1:])
         return H, dHz
 
     def residuals(self, z, data, jacobian=True):
