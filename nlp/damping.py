@@ -38,6 +38,21 @@ def _is_symbolic(x):
     return isinstance(x, (ca.SX, ca.MX))
 
 
+def _unit_lower_factor(theta, n):
+    """Lower-triangular Lt: diagonal exp(theta[:n]), strict lower triangle theta[n:] row by row."""
+    sym = _is_symbolic(theta)
+    Lt = type(theta).zeros(n, n) if sym else np.zeros((n, n))
+    exp = ca.exp if sym else np.exp
+    for i in range(n):
+        Lt[i, i] = exp(theta[i])
+    k = n
+    for i in range(n):
+        for j in range(i):
+            Lt[i, j] = theta[k]
+            k += 1
+    return Lt
+
+
 @dataclass(frozen=True)
 class GeneralDamping:
     """General SPD damping C = S Lt Lt^T S (Eqn 25f), scaled to C0.
@@ -81,18 +96,7 @@ class GeneralDamping:
 
     def lower_factor(self, theta):
         """Lt as a CasADi or numpy matrix."""
-        n = self.n
-        sym = _is_symbolic(theta)
-        Lt = type(theta).zeros(n, n) if sym else np.zeros((n, n))
-        exp = ca.exp if sym else np.exp
-        for i in range(n):
-            Lt[i, i] = exp(theta[i])
-        k = n
-        for i in range(n):
-            for j in range(i):
-                Lt[i, j] = theta[k]
-                k += 1
-        return Lt
+        return _unit_lower_factor(theta, self.n)
 
     def matrix(self, theta, M=None, K=None):
         """C(theta) [N s/m]; M and K are not used."""
@@ -281,19 +285,9 @@ class ModalGeneralDamping:
 
     def lower_factor(self, theta):
         """L = diag(s) Lt with Lt unit-scaled (exp diagonal), numpy or CasADi."""
-        m = self.m
-        sym = _is_symbolic(theta)
-        Lt = type(theta).zeros(m, m) if sym else np.zeros((m, m))
-        exp = ca.exp if sym else np.exp
-        for i in range(m):
-            Lt[i, i] = exp(theta[i])
-        k = m
-        for i in range(m):
-            for j in range(i):
-                Lt[i, j] = theta[k]
-                k += 1
+        Lt = _unit_lower_factor(theta, self.m)
         s = self.scale
-        return (ca.diag(ca.DM(s)) @ Lt) if sym else s[:, None] * Lt
+        return (ca.diag(ca.DM(s)) @ Lt) if _is_symbolic(theta) else s[:, None] * Lt
 
     @property
     def U(self):

@@ -406,8 +406,9 @@ class UpdatingProblem:
         if self.backend == "dense":
             return "dense FRF backend, " + ("compiled C" if self.compiled else "CasADi virtual machine")
         ev = self.evaluator
-        how = (f"banded LU, half-bandwidth {ev.bandwidth}" if ev.banded
-               else f"SuperLU, {ev.n} + {ev.m} unknowns")
+        how = ("batched dense LU" if ev.batched else
+               f"banded LU, half-bandwidth {ev.bandwidth}" if ev.banded else "SuperLU")
+        how += f", {ev.n} + {ev.m} unknowns"
         text = f"{self.backend} FRF backend ({how}, adjoint sensitivities)"
         info = getattr(self, "reduced_info", None)
         if info:

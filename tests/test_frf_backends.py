@@ -171,21 +171,29 @@ def test_sparse_sensitivities_equal_finite_differences(n):
             assert np.max(np.abs(J - fd)) < 1e-5 * np.abs(fd).max()
 
 
-def test_banded_and_superlu_paths_agree(monkeypatch):
-    """The banded LU (narrow band after RCM ordering) and SuperLU give the same r and J."""
+def test_batched_banded_and_superlu_paths_agree(monkeypatch):
+    """Batched dense LU (small systems), banded LU (narrow band after RCM) and SuperLU give
+    the same r and J, with Rayleigh (no border) and modal-basis damping (bordered system)."""
     from nlp.frf_backends import sparse as sparse_backend
     rng = np.random.default_rng(5)
     model = random_model(40, rng)
-    ray = RayleighDamping(0.2, 1e-3)
-    params = param_set(model, ray, fixed_masses=range(5, 40))
-    tg = target(model, band(model), [3, 20, 39])
-    banded = UpdatingProblem(model, ray, params, tg, frf_backend="sparse")
-    monkeypatch.setattr(sparse_backend, "BAND_MAX", -1)
-    superlu = UpdatingProblem(model, ray, params, tg, frf_backend="sparse")
-    assert banded.evaluator.banded and not superlu.evaluator.banded
-    z = params.z0 + rng.uniform(-0.1, 0.1, params.n_z)
-    (r1, J1), (r2, J2) = banded.residuals(z), superlu.residuals(z)
-    assert np.max(np.abs(r1 - r2)) < 1e-10 and np.max(np.abs(J1 - J2)) < 1e-9 * np.abs(J1).max()
+    for damping in (RayleighDamping(0.2, 1e-3), nonproportional_damping(model, rng)):
+        params = param_set(model, damping, fixed_masses=range(5, 40))
+        tg = target(model, band(model), [3, 20, 39])
+        problems = [UpdatingProblem(model, damping, params, tg, frf_backend="sparse")]
+        monkeypatch.setattr(sparse_backend, "BATCH_MAX", 0)
+        problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
+        monkeypatch.setattr(sparse_backend, "BAND_MAX", -1)
+        problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
+        monkeypatch.undo()
+        ev = [p.evaluator for p in problems]
+        assert ev[0].batched and not ev[1].batched and not ev[2].batched and not ev[2].banded
+        assert ev[1].banded == (damping.U is None)
+        z = params.z0 + rng.uniform(-0.1, 0.1, params.n_z)
+        r0, J0 = problems[0].residuals(z)
+        for p in problems[1:]:
+            r, J = p.residuals(z)
+            assert np.max(np.abs(r - r0)) < 1e-10 and np.max(np.abs(J - J0)) < 1e-9 * np.abs(J0).max()
 
 
 def test_auto_backend_choice():

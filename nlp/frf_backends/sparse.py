@@ -1,8 +1,9 @@
 """Exact FRF and its analytic sensitivities with one sparse factorisation per frequency.
 
 For each frequency w_k the system of :mod:`nlp.frf_backends.system` is
-factorised once (a banded LU after reverse Cuthill-McKee ordering when the
-band is narrow, SuperLU with a minimum-degree ordering otherwise; a rank-m
+factorised once (small systems: one batched dense LU over all frequencies;
+else a banded LU after reverse Cuthill-McKee ordering when the band is
+narrow, SuperLU with a minimum-degree ordering otherwise; a rank-m
 damping term U S U^T enters as a bordered system [[Z_s, jw U S], [U^T, -I]],
 so C never fills Z in). The same factors give
 
@@ -26,6 +27,7 @@ import casadi as ca
 __all__ = ["SparseFRF", "BAND_MAX"]
 
 BAND_MAX = 40  # half-bandwidth up to which the banded LU beats SuperLU (measured at n = 2000)
+BATCH_MAX = 64  # up to this size one batched dense LU over all frequencies beats per-frequency calls
 _POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
@@ -147,6 +149,18 @@ class SparseFRF:
     # ----------------------------------------------------------- linear solves
     def _choose_solver(self):
         n, pat = self.n, self.pat
+        m = self.m
+        self.batched = n + m <= BATCH_MAX
+        # bordered pattern [[Z_s, B], [U^T, -I]] (entry order: Z_s, B, U^T, -I)
+        i_u = np.repeat(np.arange(n), m)
+        a_u = np.tile(np.arange(m), n)
+        rows = np.concatenate([pat.rows, i_u, n + a_u, n + np.arange(m)])
+        cols = np.concatenate([pat.cols, n + a_u, i_u, n + np.arange(m)])
+        if self.batched:
+            self.banded = False
+            self.bandwidth = n + m
+            self._dense_rows, self._dense_cols = rows, cols
+            return
         perm = csgraph.reverse_cuthill_mckee(sp.csr_matrix(pat.P), symmetric_mode=True)
         inv = np.empty(n, int)
         inv[perm] = np.arange(n)
@@ -158,12 +172,6 @@ class SparseFRF:
             self.perm, self.bw = perm, bw
             self.band_index = (bw + pr - pc) * n + pc  # flat index into the (2 bw + 1, n) storage
             return
-        # bordered pattern [[Z_s, B], [U^T, -I]] as one CSC, in a fixed entry order
-        m = self.m
-        i_u = np.repeat(np.arange(n), m)
-        a_u = np.tile(np.arange(m), n)
-        rows = np.concatenate([pat.rows, i_u, n + a_u, n + np.arange(m)])
-        cols = np.concatenate([pat.cols, n + a_u, i_u, n + np.arange(m)])
         order = np.lexsort((rows, cols))
         self._csc_order = order
         self._csc_rows = rows[order]
@@ -172,6 +180,18 @@ class SparseFRF:
     def _factor_solve(self, zvals, w, US, rhs):
         """Solve Z_k X_k = rhs at every frequency: zvals (nnz, N); returns (n, n_rhs, N)."""
         n, N = self.n, w.size
+        m = self.m
+        if self.batched:
+            Z = np.zeros((N, n + m, n + m), complex)
+            blocks = [zvals.T]
+            if m:
+                blocks += [(1j * w[:, None] * US.ravel()[None, :]),
+                           np.broadcast_to(self.sys.U.ravel(), (N, n * m)),
+                           np.full((N, m), -1.0)]
+            Z[:, self._dense_rows, self._dense_cols] = np.concatenate(blocks, axis=1)
+            rhs_b = np.vstack([rhs, np.zeros((m, rhs.shape[1]))])
+            X = np.linalg.solve(Z, np.broadcast_to(rhs_b, (N, *rhs_b.shape)))
+            return X[:, :n, :].transpose(1, 2, 0)
         X = np.empty((n, rhs.shape[1], N), complex)
         if self.banded:
             rp = rhs[self.perm]
@@ -181,7 +201,6 @@ class SparseFRF:
                 X[self.perm, :, k] = sla.solve_banded((self.bw, self.bw), ab.reshape(-1, n), rp,
                                                       check_finite=False)
             return X
-        m = self.m
         size = n + m
         rhs_b = np.vstack([rhs, np.zeros((m, rhs.shape[1]))])
         minus_i = -np.ones(m)
