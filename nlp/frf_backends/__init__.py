@@ -18,7 +18,7 @@ physics (:mod:`nlp.physics`, dense only) is present, sparse above.
 __all__ = ["BACKENDS", "DENSE_MAX", "choose"]
 
 BACKENDS = ("auto", "dense", "sparse", "reduced")
-DENSE_MAX = 12  # DOFs; measured crossover of the local solve time (README, bench_scale)
+DENSE_MAX = 6  # DOFs: above, the cold build of the dense backend (gcc) outweighs its faster solves (README)
 
 
 def choose(requested, n, enrichments=()):

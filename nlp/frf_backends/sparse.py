@@ -31,54 +31,63 @@ BATCH_MAX = 64  # up to this size one batched dense LU over all frequencies beat
 _POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
+def _triplets(mats):
+    """(rows, cols, values, matrix index) of all nonzeros of a list of sparse matrices."""
+    parts = []
+    for i, A in enumerate(mats):
+        A = A if sp.isspmatrix_csc(A) else sp.csc_matrix(A)
+        cols = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
+        parts.append((A.indices, cols, A.data, np.full(A.data.size, i)))
+    if not parts:
+        return (np.zeros(0, int),) * 2 + (np.zeros(0),) + (np.zeros(0, int),)
+    return tuple(np.concatenate(x) for x in zip(*parts))
+
+
 class _Pattern:
-    """The union sparsity pattern of fixed matrices, and each one's values on it."""
+    """The union sparsity pattern of fixed matrices, and each one's values on it.
+
+    ``values(k0, k1)`` is a sparse (nnz, k1 - k0) matrix whose column j holds matrix
+    k0 + j on the pattern, so a linear combination of the matrices is one sparse product.
+    """
 
     def __init__(self, n, mats):
-        P = sp.csc_matrix((n, n))
-        for A in mats:
-            P = P + abs(A)
-        P = sp.csc_matrix(P + sp.identity(n, format="csc"))  # the diagonal is always there
-        P.sort_indices()
-        self.P = P
-        self.rows = P.indices.copy()
-        self.cols = np.repeat(np.arange(n), np.diff(P.indptr))
-        pos = sp.csc_matrix((np.arange(1, P.nnz + 1, dtype=float), P.indices, P.indptr), shape=(n, n))
-        self.values = []
-        for A in mats:
-            A = sp.coo_matrix(A)
-            idx = np.asarray(pos[A.row, A.col]).ravel().astype(int) - 1
-            v = np.zeros(P.nnz)
-            np.add.at(v, idx, A.data)
-            self.values.append(v)
+        rows, cols, data, which = _triplets(mats)
+        rows = np.concatenate([rows, np.arange(n)])  # the diagonal always
+        cols = np.concatenate([cols, np.arange(n)])
+        key = cols.astype(np.int64) * n + rows          # column-major, as CSC stores it
+        uniq, pos = np.unique(key, return_inverse=True)
+        self.rows, self.cols = (uniq % n).astype(int), (uniq // n).astype(int)
+        self.P = sp.csc_matrix((np.ones(uniq.size), (self.rows, self.cols)), shape=(n, n))
+        self.P.sort_indices()
+        m = data.size
+        self.V = sp.csc_matrix((data, (pos[:m], which)), shape=(uniq.size, len(mats)))
 
-    def stack(self, k0, k1):
-        """Values of matrices k0..k1-1 as columns (nnz, k1 - k0)."""
-        if k1 == k0:
-            return np.zeros((self.P.nnz, 0))
-        return np.column_stack(self.values[k0:k1])
+    def values(self, k0, k1):
+        return sp.csc_matrix(self.V[:, k0:k1])
+
+    def value(self, k):
+        return self.V[:, k].toarray().ravel()
 
 
 class _Bilinear:
-    """lambda_c^T A_i q for a list of fixed sparse A_i, touching only their nonzero rows."""
+    """lambda_c^T A_i q for a list of fixed sparse A_i, touching only their nonzero rows.
+
+    The nonzero rows of all A_i are stacked into one sparse matrix (row t belongs to
+    matrix seg[t] and is row rows[t] of it), so every product is one sparse call.
+    """
 
     def __init__(self, mats, n):
-        blocks, rows, seg = [], [], []
-        for i, A in enumerate(mats):
-            A = sp.csr_matrix(A)
-            r = np.nonzero(np.diff(A.indptr))[0]
-            blocks.append(A[r])
-            rows.append(r)
-            seg.append(np.full(r.size, i))
         self.k = len(mats)
-        if self.k and sum(r.size for r in rows):
-            self.A = sp.csr_matrix(sp.vstack(blocks))
-            self.rows = np.concatenate(rows)
-            seg = np.concatenate(seg)
-            self.S = sp.csr_matrix((np.ones(seg.size), (seg, np.arange(seg.size))),
-                                   shape=(self.k, seg.size))
-        else:
+        r, c, v, which = _triplets(mats)
+        if not v.size:
             self.A = None
+            return
+        key, pos = np.unique(which.astype(np.int64) * n + r, return_inverse=True)
+        self.rows = (key % n).astype(int)
+        seg = (key // n).astype(int)
+        self.A = sp.csr_matrix((v, (pos, c)), shape=(key.size, n))
+        self.S = sp.csr_matrix((np.ones(key.size), (seg, np.arange(key.size))),
+                               shape=(self.k, key.size))
 
     def __call__(self, Q, Lam):
         """Q (n, N), Lam (n, n_ch, N) -> (k, n_ch, N)."""
@@ -127,9 +136,10 @@ class SparseFRF:
         mats = [system.K0, system.M0, *system.K_infl, *system.M_infl, *system.dashpots]
         self.pat = _Pattern(n, mats)
         na, nb = len(system.K_infl), len(system.M_infl)
-        self.VK = self.pat.stack(2, 2 + na)
-        self.VM = self.pat.stack(2 + na, 2 + na + nb)
-        self.VD = self.pat.stack(2 + na + nb, len(mats))
+        self.VK = self.pat.values(2, 2 + na)
+        self.VM = self.pat.values(2 + na, 2 + na + nb)
+        self.VD = self.pat.values(2 + na + nb, len(mats))
+        self.K0v, self.M0v = self.pat.value(0), self.pat.value(1)
         # sensitivities only for the parameters that move (free, or tied to a variable)
         free = np.any(self.T != 0, axis=1)
         self.free_a = np.nonzero(free[sa])[0]
@@ -227,8 +237,8 @@ class SparseFRF:
         m = self.m
         S = d_out[2:2 + m * m].reshape(m, m, order="F") if m else None
         g = d_out[2 + m * m:]
-        vK = self.pat.values[0] + self.VK @ alpha
-        vM = self.pat.values[1] + self.VM @ beta
+        vK = self.K0v + self.VK @ alpha
+        vM = self.M0v + self.VM @ beta
         vD = self.VD @ g if self.nD else 0.0
         jw = 1j * w
         zvals = (vK[:, None] * (1 + jw * cK) + vM[:, None] * (-(w ** 2) + jw * cM)
