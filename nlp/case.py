@@ -6,6 +6,9 @@ import numpy as np
 import scipy.io
 
 from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .checks import (check_coherence, check_data_points, check_free_parameters,
+                     check_frf_alive, check_model_matrices, check_points_inside,
+                     check_record_alive, check_start_residuals, check_total_mass)
 from .errors import InputError
 from .freqsel import select_frequencies
 from .identify import SCALE_EXPLANATION, scale_null_space
@@ -40,9 +43,14 @@ def _load_model(cfg):
     if m.type == "shear_frame":
         return shear_frame(m.masses, m.stiffnesses)
     try:
-        raw = dict(np.load(m.file)) if m.file.endswith(".npz") else scipy.io.loadmat(m.file)
-    except Exception as exc:  # unreadable file: a user mistake
-        raise InputError(m.file, "<file>", f"a readable .npz or .mat file ({exc})") from None
+        if m.file.endswith(".npz"):
+            with np.load(m.file, allow_pickle=False) as z:
+                raw = {k: z[k] for k in z.files}
+        else:
+            raw = scipy.io.loadmat(m.file)
+    except Exception as exc:  # unreadable, empty or truncated file: a user mistake
+        raise InputError(m.file, "<file>", "a readable .npz or .mat file",
+                         f"{type(exc).__name__}: {exc}") from None
     for key in ("M0", "K0", "M_infl", "K_infl"):
         if key not in raw:
             raise InputError(m.file, key, "an array named so (M0, K0: n x n; M_infl, K_infl: "
@@ -54,13 +62,18 @@ def _load_model(cfg):
         if a.ndim != dims or a.shape[-2:] != (n, n) or not np.all(np.isfinite(a)):
             raise InputError(m.file, key, f"finite array of shape {'(r, ' if dims == 3 else '('}{n}, {n})",
                              f"shape {a.shape}")
-    if np.any(np.linalg.eigvalsh(M0) <= 0):
-        raise InputError(m.file, "M0", "a symmetric positive definite mass matrix")
+    check_model_matrices(m.file, M0, K0, Mi, Ki)
 
     def names(key, r, prefix):
         v = raw.get(key)
-        return tuple(str(x).strip() for x in np.ravel(v)) if v is not None else \
-            tuple(f"{prefix}{i + 1}" for i in range(r))
+        if v is None:
+            return tuple(f"{prefix}{i + 1}" for i in range(r))
+        out = tuple(str(x).strip() for x in np.ravel(v))
+        infl = "M_infl" if key == "beta_names" else "K_infl"
+        if len(out) != r:
+            raise InputError(m.file, key, f"{r} names, one per matrix of {infl}",
+                             f"{len(out)} names")
+        return out
 
     return StructuralModel(M0=M0, K0=K0, M_infl=tuple(Mi), K_infl=tuple(Ki),
                            beta_names=names("beta_names", len(Mi), "beta"),
@@ -161,14 +174,51 @@ def _read_data(cfg, path=None):
     for c in d.channels:
         spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit}
     spec = {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
-    rec = read_time_histories(path, spec)
+    try:
+        rec = read_time_histories(path, spec)
+    except InputError as exc:  # a unit or column named in the case file: say which key
+        raise _case_key_error(cfg, exc) from None
     x = rec.data["__input__"]
+    check_record_alive(path, inp["column"], x, f"data.input.column of {cfg.path}")
+    for i, c in enumerate(d.channels):
+        check_record_alive(path, c.column, rec.data[c.name], f"data.channels[{i}] of {cfg.path}")
     y = np.array([rec.data[c.name] for c in d.channels])
     nperseg = x.size if d.nperseg == "all" else d.nperseg
     noverlap = None if nperseg is None else int(d.overlap * nperseg)
-    est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg, noverlap=noverlap,
-                       window=d.window, source=path)
+    try:
+        est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg,
+                           noverlap=noverlap, window=d.window, source=path)
+    except InputError as exc:
+        if exc.key in ("nperseg", "noverlap"):
+            raise InputError(cfg.path, "data.nperseg" if exc.key == "nperseg" else "data.overlap",
+                             f"{exc.expected} (the records in {path} have {x.size} samples)",
+                             exc.got) from None
+        raise
+    check_coherence(cfg, est.f, est.coherence, [c.column for c in d.channels],
+                    [f"data.channels[{i}]" for i in range(len(d.channels))],
+                    _n_segments(x.size, nperseg, noverlap))
     return est.f, est.H, est.coherence, rec
+
+
+def _n_segments(n, nperseg, noverlap):
+    """Welch averages behind an H1 estimate (scipy's default segment when None)."""
+    nperseg = nperseg or min(n, 256)
+    noverlap = nperseg // 2 if noverlap is None else noverlap
+    return max((n - nperseg) // max(nperseg - noverlap, 1) + 1, 1)
+
+
+def _case_key_error(cfg, exc):
+    """A records-file error about a channel spec, renamed to the case file's key."""
+    key = exc.key
+    if key.startswith("channels."):
+        _, name, *rest = key.split(".")
+        field = rest[0] if rest else "column"
+        if name == "__input__":
+            return InputError(cfg.path, f"data.input.{field}", exc.expected, exc.got)
+        for i, c in enumerate(cfg.data.channels):
+            if c.name == name:
+                return InputError(cfg.path, f"data.channels[{i}].{field}", exc.expected, exc.got)
+    return exc
 
 
 def _detection_form(f, H, channels, excitation):
@@ -195,13 +245,31 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
             mask &= f <= fc.fmax
         idx = np.nonzero(mask)[0]
     elif fc.method == "points":
+        check_points_inside(cfg, f)
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
+        check_points_inside(cfg, f)
         try:
             idx = _half_power(cfg, f, H, channels, excitation, coherence)
         except InputError as exc:  # freqsel names its argument; say which case key it is
-            raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
+            raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
+
+
+_FREQ_KEYS = {"k", "bands", "points", "fmin", "fmax", "n_peaks", "min_points_per_peak",
+              "min_coherence"}
+
+
+def _frequency_error(cfg, f, exc):
+    """A freqsel error named by a key that exists in the case file."""
+    if exc.key in _FREQ_KEYS:
+        return InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got)
+    if exc.key == "prominence_db":  # no resonance peak: the data, not a setting, is the cause
+        return InputError(cfg.path, "frequencies.method", "a method the data allow: half_power "
+                          f"needs a resonance peak, and {cfg.data.file} shows none in "
+                          f"{f[0]:g}-{f[-1]:g} Hz (check its record length and input, or use "
+                          "bands or all)", cfg.frequencies.method)
+    return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
 
 
 def _half_power(cfg, f, H, channels, excitation, coherence):
@@ -232,6 +300,8 @@ def assemble(cfg, channels=None, data_file=None):
     n = model.n
     damping = _damping(cfg, model)
     params = _parameters(cfg, model, damping)
+    check_free_parameters(cfg.path, params)
+    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
     f, H, coherence, records = _read_data(cfg, data_file)
     ex = cfg.excitation
     if ex.type == "force" and ex.floor > n:
@@ -255,10 +325,13 @@ def assemble(cfg, channels=None, data_file=None):
         rows.append(c.column if cfg.data.type == "frf" else i)
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
+    if cfg.data.type == "frf":
+        check_frf_alive(cfg, H, rows)
     H = H[rows]
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
+    check_data_points(cfg, params, len(channels), idx.size, f)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type,
@@ -277,12 +350,16 @@ def build_problem(case):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
-        return UpdatingProblem(case.model, case.damping, case.params, case.target,
-                               residual=cfg.objective.residual, solver=solver,
-                               total_mass=cfg.parameters.total_mass)
-    except RuntimeError as exc:  # CasADi rejects an option: a case-file mistake
+        problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                  residual=cfg.objective.residual, solver=solver,
+                                  total_mass=cfg.parameters.total_mass)
+    except RuntimeError as exc:
+        if "option" not in str(exc).lower():  # not the user's options: a real failure
+            raise
         raise InputError(cfg.path, "solver.options", f"options that CasADi's {cfg.solver.name} "
                          f"accepts ({_casadi_reason(str(exc))})") from None
+    check_start_residuals(case, problem)
+    return problem
 
 
 def _casadi_reason(text):

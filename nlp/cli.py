@@ -5,28 +5,43 @@ import os
 import sys
 
 from .errors import InputError
+from .outdir import check_writable, locked_folder, output_folder, prev_path
 
 __all__ = ["main"]
+
+
+def _out(args, default):
+    """The --out folder, checked for writing before any work (creates nothing)."""
+    out = os.path.abspath(args.out or os.path.join(os.path.dirname(os.path.abspath(args.case)),
+                                                   default))
+    check_writable(out)
+    return out
 
 
 def _run(args):
     from .config import load_case
     from .workflow import run
 
+    out = _out(args, "results")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": args.solver})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "results"))
-    return run(cfg, out)
+    with output_folder(out, "run") as stage:
+        status = run(cfg, stage)
+        stage.interrupted = status == 130
+    print(f"wrote {out}: summary.json, result.json, parameters.csv, figures, report.html"
+          + (f" (previous result in {prev_path(out)})" if os.path.isdir(prev_path(out)) else ""))
+    return status
 
 
 def _diagnose(args):
     from .config import load_case
     from .diagnose import diagnose
 
+    out = _out(args, "diagnosis")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
                                 "solver": None})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "diagnosis"))
-    diagnose(cfg, out)
+    with output_folder(out, "diagnose") as stage:
+        diagnose(cfg, stage)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png")
     return 0
 
@@ -34,7 +49,8 @@ def _diagnose(args):
 def _report(args):
     from .report import write_report
 
-    print(f"wrote {write_report(os.path.abspath(args.dir))}")
+    with locked_folder(os.path.abspath(args.dir)) as d:
+        print(f"wrote {write_report(d)}")
     return 0
 
 

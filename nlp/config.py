@@ -7,6 +7,7 @@ the key and what is expected. See the README's case-file reference.
 from dataclasses import dataclass, field
 import math
 import os
+import re
 
 import yaml
 
@@ -137,6 +138,21 @@ class CaseConfig:
     closeup_seconds: float = 3.0
 
 
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads YAML 1.2 floats too: ``2.552e6`` and ``1e-3`` are numbers
+    (YAML 1.1 wants a dot and a signed exponent, and would read them as text)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
 class _Reader:
     """Typed access to a YAML mapping with errors that name file and key."""
 
@@ -216,8 +232,14 @@ def load_case(path, overrides=None):
     if not os.path.isfile(path):
         raise InputError(path, "<file>", "an existing case YAML file")
     try:
-        with open(path) as fh:
-            raw = yaml.safe_load(fh)
+        with open(path, "rb") as fh:
+            text = fh.read()
+        if b"\0" in text:
+            raise InputError(path, "<file>", "a YAML text file", "binary data")
+        raw = yaml.load(text.decode("utf-8"), Loader=_Loader)
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "<file>", "a YAML text file in UTF-8",
+                         f"undecodable byte at position {exc.start}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
     rd = _Reader(path)

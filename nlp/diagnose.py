@@ -30,10 +30,12 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
+from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                       extend_parameters, references)
 from .problem import SolverConfig, Target, UpdatingProblem
+from .provenance import provenance
 from .search import SearchConfig, scatter_search
 
 __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS"]
@@ -431,6 +433,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
+    check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
     b_res = scatter_search(base, SearchConfig(starts=max(cfg.search.starts, 20),
                                               seed=cfg.search.seed), progress=None).best
@@ -573,7 +576,7 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
               "summary": statements, "remaining_mismatch": remaining,
               "fit": {"before": fit_before, "after": fit_after},
               "residual_map": {"before": cells, "after": cells_after},
-              "suggested_measurements": suggestions}
+              "suggested_measurements": suggestions, "provenance": provenance(cfg)}
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, cells, cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)

@@ -16,9 +16,13 @@ __all__ = ["plot_frf_overlays", "save_figure"]
 def save_figure(fig, path, dpi=110):
     """Write a figure atomically (temporary file, then rename) and close it."""
     tmp = os.path.join(os.path.dirname(path) or ".", ".tmp-" + os.path.basename(path))
-    fig.savefig(tmp, dpi=dpi, format="png")
-    os.replace(tmp, path)
-    plt.close(fig)
+    try:
+        fig.savefig(tmp, dpi=dpi, format="png")
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):  # a failed save leaves no empty .tmp-* behind
+            os.unlink(tmp)
     return path
 
 

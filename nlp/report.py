@@ -47,8 +47,10 @@ def _update_section(out, d, label):
              f"iterations); objective {res['objective']['initial']:.4g} &rarr; "
              f"{res['objective']['updated']:.4g}; {res['search']['starts_finished']} starts, "
              f"{res['search']['starts_within_1pct_of_best']} within 1 % of the best.</p>"]
-    rows = [[p["name"], p["unit"], p["initial"], p["updated"], p["standard_error"], p["lower"],
-             p["upper"], "fixed" if p["fixed"] else (p["tie"] or "")] for p in res["parameters"]]
+    rows = [[p["name"], p["unit"], p["initial"], p["updated"],
+             p["standard_error"] if p["standard_error"] is not None
+             else f"n/a (at {p.get('at_bound')} bound)", p["lower"], p["upper"],
+             "fixed" if p["fixed"] else (p["tie"] or "")] for p in res["parameters"]]
     parts.append(_table(["parameter", "unit", "initial", "updated", "std. error", "lower", "upper",
                          ""], rows))
     m0, m1 = res["modal"]["initial"], res["modal"]["updated"]
@@ -68,6 +70,37 @@ def _update_section(out, d, label):
     return "\n".join(parts)
 
 
+def _flags_section(out, s):
+    """Warnings first: what must not be read as a clean result (see nlp.flags)."""
+    flags = list(s.get("flags", ()))
+    if "flags" not in s:  # older summary.json: collect them from the result files
+        for label in s.get("updates") or [None]:
+            p = os.path.join(out if label is None else os.path.join(out, label), "result.json")
+            if os.path.isfile(p):
+                flags += [dict(f, update=label) for f in _load(p).get("flags", ())]
+    if not flags:
+        return "<h2>Flags</h2><p>None: no parameter on a bound, the best start converged" \
+               + (", no replay anti-correlated" if "time_domain" in s else "") + ".</p>"
+    items = "".join(f"<li><b>{html.escape(f['kind'])}</b>"
+                    + (f" [{html.escape(str(f['update']))}]" if f.get("update") else "")
+                    + f": {html.escape(f['message'])}.<br>What it means / what to do: "
+                    f"{html.escape(f['advice'])}.</li>" for f in flags)
+    return f"<h2>Flags ({len(flags)})</h2><ul>{items}</ul>"
+
+
+def _provenance_section(prov):
+    if not prov:
+        return ""
+    git = prov.get("git") or {}
+    rows = [["package", f"{prov.get('package', 'frf-nlp')} {prov.get('version', '')}"],
+            ["git commit", (git.get("commit", "") + (" (uncommitted changes)" if git.get("dirty")
+                                                     else "")) if git else "not a checkout"],
+            ["date (UTC)", prov.get("date_utc")], ["command line", prov.get("command_line")]]
+    rows += [[f"sha256 {os.path.basename(f)}", v["sha256"]]
+             for f, v in prov.get("files", {}).items()]
+    return "<h2>Provenance</h2>" + _table(["", ""], rows)
+
+
 def write_report(out):
     """Write ``out/report.html`` from the files of a finished run; returns its path."""
     spath = os.path.join(out, "summary.json")
@@ -80,6 +113,7 @@ def write_report(out):
     if s.get("interrupted"):
         parts.append("<p><b>The run was interrupted; results are from the starts that finished."
                      "</b></p>")
+    parts.append(_flags_section(out, s))
     table1 = os.path.join(out, "table1.csv")
     if os.path.isfile(table1):
         with open(table1) as fh:
@@ -114,6 +148,7 @@ def write_report(out):
         d = out if label is None else os.path.join(out, label)
         if os.path.isfile(os.path.join(d, "result.json")):
             parts.append(_update_section(out, d, label))
+    parts.append(_provenance_section(s.get("provenance")))
     parts.append("</body></html>")
     path = os.path.join(out, "report.html")
     write_atomic(path, "\n".join(parts))

@@ -16,10 +16,12 @@ import numpy as np
 from .case import _detection_form, assemble, build_problem
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
+from .flags import replay_flags
 from .freqsel import plot_selection
 from .metrics import fdac, fdac_overall, frac
 from .peakpick import compare_modes
 from .plots import plot_frf_overlays
+from .provenance import provenance
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
 from .search import SearchConfig, scatter_search
@@ -28,7 +30,7 @@ from .verify import plot_replay, replay
 __all__ = ["run"]
 
 
-def _update(cfg, label, channels, out, log):
+def _update(cfg, label, channels, out, log, prov):
     case = assemble(cfg, channels=channels)
     tag = f"[{label}] " if label else ""
     log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
@@ -43,6 +45,7 @@ def _update(cfg, label, channels, out, log):
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
                                                   seed=s.seed, workers=s.workers))
     result = summarize(case, problem, search)
+    result["provenance"] = prov
     os.makedirs(out, exist_ok=True)
     write_json(os.path.join(out, "result.json"), result)
     table = parameters_table(result)
@@ -70,6 +73,13 @@ def _log_result(result, table, log, tag):
     for wk in result["identifiability"]["weak_directions"]:
         log(f"{tag}warning: weakly identified combination {wk['combination']} "
             f"(sigma ratio {wk['sigma_ratio']:.1e})")
+    _log_flags(result.get("flags", ()), log, tag)
+
+
+def _log_flags(flags, log, tag=""):
+    for fl in flags:
+        log(f"{tag}WARNING ({fl['kind']}): {fl['message']}")
+        log(f"{tag}  what it means / what to do: {fl['advice']}")
 
 
 def _fdac_of(model, case):
@@ -110,9 +120,10 @@ def run(cfg, out, log=print):
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
+    prov = provenance(cfg)
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
-        case, result, interrupted = _update(cfg, label, channels, d, log)
+        case, result, interrupted = _update(cfg, label, channels, d, log, prov)
         results[label] = (case, result)
         if interrupted:
             break
@@ -121,7 +132,9 @@ def run(cfg, out, log=print):
     M, K, C = model
     fn, zeta, _ = modal_parameters(M, C, K)
     summary = {"case": cfg.name, "updates": [k for k in results if k is not None],
-               "interrupted": interrupted,
+               "interrupted": interrupted, "provenance": prov,
+               "flags": [dict(fl, update=label) for label, (_, r) in results.items()
+                         for fl in r.get("flags", ())],
                "model": {"M": M, "K": K, "C": C, "natural_frequencies_hz": fn,
                          "damping_ratios": zeta},
                "fdac": {}, "fdac_overall": {}, "frac": {}, "modes": {}}
@@ -172,7 +185,9 @@ def run(cfg, out, log=print):
                                                                "peak_error")}
         log("time domain NRMSE: " + ", ".join(f"{k} {100 * v['nrmse']:.1f} %"
                                              for k, v in summary["time_domain"].items()))
+        rflags = replay_flags(summary["time_domain"])
+        summary["flags"] += rflags
+        _log_flags(rflags, log)
     write_json(os.path.join(out, "summary.json"), summary)
-    path = write_report(out)
-    log(f"wrote {out}: summary.json, result.json, parameters.csv, figures, {os.path.basename(path)}")
+    write_report(out)
     return 130 if interrupted else 0
