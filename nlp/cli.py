@@ -20,11 +20,11 @@ def _out(args, default):
 
 def _run(args):
     from .config import load_case
-    from .workflow import run
 
     out = _out(args, "results")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": args.solver})
+    from .workflow import run
     with output_folder(out, "run") as stage:
         status = run(cfg, stage)
         stage.interrupted = status == 130
@@ -35,11 +35,11 @@ def _run(args):
 
 def _diagnose(args):
     from .config import load_case
-    from .diagnose import diagnose
 
     out = _out(args, "diagnosis")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
                                 "solver": None})
+    from .diagnose import diagnose
     with output_folder(out, "diagnose") as stage:
         diagnose(cfg, stage)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png")

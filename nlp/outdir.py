@@ -7,10 +7,10 @@ A run never writes into its ``--out`` folder ``DIR`` directly. It
 2. takes the lock ``DIR.lock`` (an ``flock`` on a file beside ``DIR``, released
    by the kernel if the process dies): a second run on the same ``DIR`` is
    refused with exit status 2;
-3. writes everything into the staging folder ``DIR.partial``, which holds an
+3. writes everything into the staging folder ``DIR.staging``, which holds an
    ``INCOMPLETE`` note until the end (a killed run leaves it there, and ``DIR``
    untouched);
-4. swaps ``DIR.partial`` and ``DIR`` in one atomic ``renameat2(RENAME_EXCHANGE)``
+4. swaps ``DIR.staging`` and ``DIR`` in one atomic ``renameat2(RENAME_EXCHANGE)``
    (two renames where the kernel lacks it) and keeps the previous result as
    ``DIR.prev``.
 
@@ -38,8 +38,8 @@ _CRASH_ENV = "FRF_NLP_TEST_CRASH"  # tests only: "commit" kills the process befo
 
 
 def staging_path(out):
-    """The staging folder of ``out``: ``out + '.partial'``."""
-    return os.path.abspath(out) + ".partial"
+    """The staging folder of ``out``: ``out + '.staging'``."""
+    return os.path.abspath(out) + ".staging"
 
 
 def lock_path(out):
