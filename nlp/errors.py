@@ -6,7 +6,7 @@ and exits with status 2, without a traceback. Programming errors stay ordinary
 exceptions.
 """
 
-__all__ = ["InputError"]
+__all__ = ["InputError", "SearchFailed"]
 
 
 class InputError(ValueError):
@@ -48,3 +48,7 @@ def _plain(x):
     if isinstance(x, dict):
         return {k: _plain(v) for k, v in x.items()}
     return x
+
+
+class SearchFailed(RuntimeError):
+    """No local solve of the search converged; nothing is written (CLI exit status 3)."""

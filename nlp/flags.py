@@ -9,7 +9,8 @@ the top of report.html.
   it means the bound is wrong, the model is wrong, or the data do not identify
   the parameter.
 * ``iteration_limit``: the best start stopped at the solver's iteration (or
-  time) limit, so the optimum may not be reached.
+  time) limit, or a start that did reached a lower objective than the best
+  converged one: the optimum may not be reached.
 * ``negative_correlation``: a replayed time history anti-correlates with its
   record, the signature of a sign or unit error (an inverted sensor, a force
   taken with the wrong sign, a displacement given as acceleration).
@@ -46,16 +47,32 @@ def bound_flag(name, value, lower, upper, unit, se_key):
                       "identifiability.weak_directions)"}
 
 
-def iteration_flag(status, iterations, solver):
-    """Flag a best start that stopped at an iteration or time limit, or None."""
-    if status not in LIMIT_STATUSES:
-        return None
+def iteration_flag(best, results, solver):
+    """Flag a search whose answer may lie beyond a solver limit, or None.
+
+    The best start (a converged one) is flagged when it stopped at an iteration
+    or time limit itself, or when a start that stopped at a limit had already
+    reached a lower objective: that start was still descending where the best
+    one is reported.
+    """
     key = "ipopt.max_iter" if solver == "ipopt" else "max_iter"
-    return {"kind": "iteration_limit", "subject": "best start",
-            "message": f"the best start stopped at the solver's limit ({status}, {iterations} "
-                       "iterations): it may not be at an optimum",
-            "advice": f"raise solver.options.{key}, run more starts (--starts), and if it "
-                      "persists look for a weakly identified combination or a wrong model"}
+    advice = (f"raise solver.options.{key}, run more starts (--starts), and if it persists "
+              "look for a weakly identified combination (identifiability) or a wrong model")
+    if best.status in LIMIT_STATUSES:
+        return {"kind": "iteration_limit", "subject": "best start",
+                "message": f"the best start stopped at the solver's limit ({best.status}, "
+                           f"{best.iterations} iterations): it may not be at an optimum",
+                "advice": advice}
+    lower = [r for r in results if r.status in LIMIT_STATUSES and np.isfinite(r.f)
+             and r.f < best.f]
+    if not lower:
+        return None
+    r = min(lower, key=lambda r: r.f)
+    return {"kind": "iteration_limit", "subject": "search",
+            "message": f"{len(lower)} start(s) stopped at the solver's limit ({r.status}, "
+                       f"{r.iterations} iterations) below the best converged objective "
+                       f"({r.f:.6g} < {best.f:.6g}): the optimum may lie elsewhere",
+            "advice": advice}
 
 
 def replay_flags(time_domain):

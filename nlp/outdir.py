@@ -15,8 +15,10 @@ A run never writes into its ``--out`` folder ``DIR`` directly. It
    ``DIR.prev``.
 
 So ``DIR`` is always either the complete result of one run or untouched. Input
-errors found after the lock remove the staging folder and the lock file:
-nothing is created or changed.
+errors (or any other exception) after the lock remove the staging folder and the
+lock file: nothing is created or changed. The search checkpoint is not in the
+staging folder but in ``DIR.partial/`` (:mod:`nlp.checkpoint`), so ``--resume``
+finds it after any interruption.
 """
 
 from contextlib import contextmanager
@@ -193,18 +195,15 @@ def _commit(stage, out, interrupted):
 
 
 @contextmanager
-def output_folder(out, command="run", keep_staging=False):
+def output_folder(out, command="run"):
     """Lock ``out`` and yield a fresh staging folder to write the result into.
 
     On normal exit the staging folder replaces ``out`` (old result kept as
     ``out.prev``); set ``folder.interrupted = True`` on the yielded object to
-    mark a partial result. An :class:`InputError` removes everything created.
-    Any other exception (a crash, an interruption before any result) leaves
-    ``out`` untouched and the staging folder with its ``INCOMPLETE`` note (a
-    checkpoint written there survives for ``--resume``).
-
-    keep_staging : reuse an existing staging folder (resume) instead of
-        starting from an empty one.
+    mark a partial result. An exception (input error, failed search, Ctrl-C
+    before any result) removes everything this call created and leaves ``out``
+    untouched. Only a killed process leaves the staging folder, with its
+    ``INCOMPLETE`` note; the next run replaces it.
     """
     out = os.path.abspath(out)
     check_writable(out)
@@ -215,30 +214,24 @@ def output_folder(out, command="run", keep_staging=False):
     stage = staging_path(out)
     handle = _Folder(stage)
     try:
-        existed = os.path.isdir(stage)
-        if existed and not keep_staging:
+        if os.path.lexists(stage):  # left by a killed run: it never became a result
             shutil.rmtree(stage)
-            existed = False
-        os.makedirs(stage, exist_ok=True)
+        os.makedirs(stage)
         _note(os.path.join(stage, INCOMPLETE),
               f"frf-nlp {command} (process {os.getpid()}) is writing this folder, or was "
               f"stopped before finishing. The last complete result is in {out}.\n")
         try:
             yield handle
-        except InputError:
-            if not existed:
-                shutil.rmtree(stage, ignore_errors=True)
+        except BaseException:
+            # an input error, a failed search, Ctrl-C before any result, a crash: nothing
+            # half-written stays (the search checkpoint lives apart, in DIR.partial/)
+            shutil.rmtree(stage, ignore_errors=True)
             lock.release()
             for d in made:  # deepest first; only folders this call created
                 try:
                     os.rmdir(d)
                 except OSError:
                     break
-            raise
-        except BaseException as exc:
-            _note(os.path.join(stage, INCOMPLETE),
-                  f"frf-nlp {command} stopped before finishing ({type(exc).__name__}). "
-                  f"The last complete result is in {out}.\n")
             raise
         _commit(stage, out, handle.interrupted)
     finally:

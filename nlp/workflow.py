@@ -9,11 +9,13 @@ measured input replayed in the time domain when the data are records.
 
 from dataclasses import replace
 import os
+import shutil
 import time
 
 import numpy as np
 
 from .case import _detection_form, assemble, build_problem
+from .checkpoint import Checkpoint, checkpoint_path
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
 from .flags import replay_flags
@@ -24,13 +26,14 @@ from .plots import plot_frf_overlays
 from .provenance import provenance
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
+from .executors import Setup
 from .search import SearchConfig, scatter_search
 from .verify import plot_replay, replay
 
 __all__ = ["run"]
 
 
-def _update(cfg, label, channels, out, log, prov):
+def _update(cfg, label, channels, out, log, prov, checkpoint=None):
     case = assemble(cfg, channels=channels)
     tag = f"[{label}] " if label else ""
     log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
@@ -43,7 +46,11 @@ def _update(cfg, label, channels, out, log, prov):
         f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
     s = cfg.search
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                  seed=s.seed, workers=s.workers))
+                                                  seed=s.seed, workers=s.workers,
+                                                  executor=s.executor, scheduler=s.scheduler),
+                            setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
+    if search.resumed:
+        log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
     result = summarize(case, problem, search)
     result["provenance"] = prov
     os.makedirs(out, exist_ok=True)
@@ -86,7 +93,8 @@ def _fdac_of(model, case):
     """FDAC per channel, FDAC overall and FRAC per channel of a model against a case's data."""
     M, K, C = model
     tg = case.target
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof,
+                      tg.ground_r)
     names = [c.name for c in case.channels]
     return (dict(zip(names, fdac(Ha, tg.H).tolist())), float(fdac_overall(Ha, tg.H)),
             dict(zip(names, frac(Ha, tg.H).tolist())))
@@ -115,15 +123,22 @@ def _table1(results, average):
     return "\n".join(lines) + "\n"
 
 
-def run(cfg, out, log=print):
-    """Run a validated case into folder ``out``; returns the exit status (0 or 130)."""
+def run(cfg, out, log=print, resume=False, ckpt_out=None):
+    """Run a validated case into folder ``out``; returns the exit status (0 or 130).
+
+    Every finished start is kept in ``out.partial/`` (:mod:`nlp.checkpoint`);
+    ``resume`` continues from it, and a completed run removes it. ``ckpt_out``:
+    the final --out when ``out`` is its staging folder (:mod:`nlp.outdir`), so the
+    checkpoint lives beside the final folder, where ``--resume`` looks.
+    """
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
     prov = provenance(cfg)
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
-        case, result, interrupted = _update(cfg, label, channels, d, log, prov)
+        ckpt = Checkpoint(checkpoint_path(ckpt_out or out, label), resume=resume)
+        case, result, interrupted = _update(cfg, label, channels, d, log, prov, ckpt)
         results[label] = (case, result)
         if interrupted:
             break
@@ -190,4 +205,9 @@ def run(cfg, out, log=print):
         _log_flags(rflags, log)
     write_json(os.path.join(out, "summary.json"), summary)
     write_report(out)
-    return 130 if interrupted else 0
+    if interrupted:
+        log(f"interrupted: finished starts are kept in "
+            f"{os.path.dirname(checkpoint_path(ckpt_out or out))}; continue with --resume")
+        return 130
+    shutil.rmtree(os.path.dirname(checkpoint_path(ckpt_out or out)), ignore_errors=True)
+    return 0

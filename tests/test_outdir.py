@@ -263,9 +263,18 @@ def test_parameter_at_a_bound_is_flagged(case, tmp_path):
 
 
 def test_iteration_limit_flag_gives_advice():
-    assert iteration_flag("Solve_Succeeded", 20, "ipopt") is None
-    f = iteration_flag("Maximum_Iterations_Exceeded", 500, "ipopt")
+    from nlp.problem import LocalResult
+
+    def res(f, status, it=20):
+        return LocalResult(z=np.zeros(2), f=f, success=status == "Solve_Succeeded",
+                           status=status, iterations=it, seconds=0.1, z0=np.zeros(2))
+    best = res(1.0, "Solve_Succeeded")
+    assert iteration_flag(best, [best, res(2.0, "Maximum_Iterations_Exceeded", 500)],
+                          "ipopt") is None
+    f = iteration_flag(best, [best, res(0.5, "Maximum_Iterations_Exceeded", 500)], "ipopt")
     assert f["kind"] == "iteration_limit" and "ipopt.max_iter" in f["advice"]
+    f = iteration_flag(res(1.0, "Maximum_Iterations_Exceeded"), [], "sqpmethod")
+    assert f["subject"] == "best start" and "solver.options.max_iter" in f["advice"]
 
 
 def test_negative_replay_correlation_is_flagged_as_sign_error():
