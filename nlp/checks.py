@@ -135,12 +135,8 @@ def check_coherence(cfg, f, coherence, names, keys, n_averages):
     from several averages only: with one average the coherence is 1 by construction)."""
     if coherence is None or n_averages < 16:
         return
-    fc = cfg.frequencies
-    band = f > 0
-    if fc.fmin is not None:
-        band &= f >= fc.fmin
-    if fc.fmax is not None:
-        band &= f <= fc.fmax
+    from .freqsel import _window  # config validated fmin < fmax already
+    band = (f > 0) & _window(f, cfg.frequencies.fmin, cfg.frequencies.fmax)
     for c, (name, key) in enumerate(zip(names, keys)):
         top = float(np.max(coherence[c, band])) if band.any() else 0.0
         if top < MIN_COHERENCE:

@@ -17,6 +17,8 @@ import warnings
 
 import casadi as ca
 
+from .provenance import sha256_file as _sha256
+
 __all__ = ["cache_dir", "compile_library"]
 
 _FLAGS = ["-O2", "-fPIC", "-shared"]
@@ -76,14 +78,6 @@ def compile_library(functions, stem="frfnlp"):
         warnings.warn(f"compiling CasADi functions failed ({exc}); running uncompiled")
         return None
     return lib
-
-
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _loads(lib, name):

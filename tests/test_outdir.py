@@ -183,9 +183,11 @@ def test_sigkill_before_the_swap_keeps_the_old_folder(case, tmp_path):
         {k: v for k, v in before.items() if k.startswith("out/")}
     stage = out + ".staging"
     assert "result.json" in os.listdir(stage)
-    # the next run recovers: complete folder, no staging left behind
-    assert cli_inproc("run", path, "--out", out, "--starts", 1).returncode == 0
-    consistent(out)
+    # the lock died with the process; the next writer replaces the dead staging folder
+    with outdir.output_folder(out) as new:
+        assert os.listdir(new) == [outdir.INCOMPLETE]
+        open(os.path.join(new, "result.json"), "w").write("{}")
+    assert os.listdir(out) == ["result.json"] and consistent(out + ".prev")
     assert not os.path.exists(stage) and not os.path.exists(out + ".lock")
 
 
