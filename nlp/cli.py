@@ -52,11 +52,12 @@ def _batch(args):
     from .batch import find_records, run_batch
     from .config import load_case
 
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
-                                "solver": None})
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": args.workers,
+                                "solver": None, "executor": args.executor,
+                                "scheduler": args.scheduler})
     records = find_records(args.records)
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "batch"))
-    return run_batch(cfg, records, out, workers=args.workers or 1, resume=args.resume)
+    return run_batch(cfg, records, out, resume=args.resume)
 
 
 def _report(args):
@@ -96,6 +97,10 @@ def _parser():
     bt.add_argument("--starts", type=int, help="local solves per record")
     bt.add_argument("--seed", type=int, help="seed of the trial points")
     bt.add_argument("--workers", type=int, help="records updated at once (worker processes)")
+    bt.add_argument("--executor", choices=EXECUTORS, help="where records run: local processes "
+                    "(default) or a Dask cluster")
+    bt.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                    "--executor dask; without it a LocalCluster of --workers processes)")
     bt.add_argument("--resume", action="store_true", help="keep the records an interrupted "
                     "batch finished and update only the rest")
     rep = sub.add_parser("report", help="rebuild report.html of a finished run folder")

@@ -84,7 +84,7 @@ def summarize(case, problem, search):
         if flag:
             flags.append(flag)
         rows.append({
-            "name": p.name, "group": p.group, "unit": UNITS[p.group],
+            "name": p.name, "group": p.group, "unit": p.unit or UNITS[p.group],
             "initial": _physical(p, theta0[i]), "updated": _physical(p, theta[i]),
             "relative_change": float(theta[i]) if p.nominal is not None else None,
             "lower": _physical(p, p.lower), "upper": _physical(p, p.upper),

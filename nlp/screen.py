@@ -45,6 +45,7 @@ __all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swa
 RECORD_CHECKS = []          # callables case -> list of {"kind", "message", "severity"}
 
 PEAK_PROMINENCE_DB = 6.0    # a resonance stands 6 dB above its surroundings in the channel sum
+PEAK_MIN_BINS = 3           # ... and is at least 3 bins wide at half its prominence
 QUAD_DOMINANT = 0.5         # quadrature counts when |Im A| >= 0.5 |A| (the mode dominates)
 QUAD_LEVEL = 0.05           # ... and |A_c| >= 5 % of the largest channel at that resonance
 MAC_GAIN = 0.12             # a swap must raise the mean MAC by this much ...
@@ -80,12 +81,16 @@ def _segments(case):
 
 def resonances(f, D, idx, max_peaks):
     """Bins of the resonances: peaks of sum_c |D_c| / median|D_c| standing
-    PEAK_PROMINENCE_DB above their surroundings, the most prominent max_peaks,
+    PEAK_PROMINENCE_DB above their surroundings and PEAK_MIN_BINS wide, the most
+    prominent max_peaks,
     in increasing frequency."""
     A = np.abs(D[:, idx])
     s = np.sum(A / (np.median(A, axis=1, keepdims=True) + 1e-300), axis=0)
     db = 20 * np.log10(s + 1e-300)
-    pk, prop = signal.find_peaks(db, prominence=PEAK_PROMINENCE_DB)
+    # a resonance spans several bins at half its prominence; a noise bump of a
+    # one-segment estimate is one or two bins wide
+    pk, prop = signal.find_peaks(db, prominence=PEAK_PROMINENCE_DB, width=PEAK_MIN_BINS,
+                                 rel_height=0.5)
     keep = np.argsort(-prop["prominences"])[:max_peaks]
     return np.sort(idx[pk[keep]])
 

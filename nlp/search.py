@@ -134,11 +134,13 @@ def pick_starts(Z, scores, n, lo, hi, min_distance):
     return chosen.astype(int)
 
 
-def start_points(problem, config):
+def start_points(problem, config, executor=None, setup=None):
     """The start points (rows) and the number of trial points scored.
 
     Start 0 is the case's initial point; the others are picked from the
     seeded trial points, so the same problem and seed give the same starts.
+    With an executor of several workers the trial points are scored there, in
+    equal chunks (each point's score does not depend on the chunking).
     """
     lo, hi = problem.bounds
     n_starts = max(1, int(config.starts))
@@ -147,11 +149,24 @@ def start_points(problem, config):
     if n_starts > 1:
         n_trial = max(n_starts - 1, config.trial_factor * n_starts)
         Z = trial_points(lo, hi, n_trial, config.seed)
-        with np.errstate(all="ignore"):
-            scores = problem.objective_batch(Z.T)
+        if executor is not None and executor.workers > 1 and n_trial >= _PARALLEL_SCORING:
+            size = -(-n_trial // (4 * executor.workers))
+            chunks = [(k, Z[k:k + size]) for k in range(0, n_trial, size)]
+            got = executor.map(setup or Setup(value=problem), _score_chunk, chunks, batch_size=1)
+            scores = np.concatenate([got[k] for k, _ in chunks])
+        else:
+            scores = _score_chunk(problem, Z)
         idx = pick_starts(Z, scores, n_starts - 1, lo, hi, config.min_distance)
         starts += [Z[i] for i in idx]
     return np.array(starts), n_trial
+
+
+_PARALLEL_SCORING = 20_000  # trial points; below this, shipping them costs more than it saves
+
+
+def _score_chunk(problem, Z):
+    with np.errstate(all="ignore"):
+        return problem.objective_batch(Z.T)
 
 
 def converged(problem, res):
@@ -166,7 +181,9 @@ def converged(problem, res):
 def solve_start(problem, z0):
     """One local solve that never raises: a failure is a result with f = inf.
 
-    ``success`` of the returned result means :func:`converged`.
+    ``success`` of the returned result means :func:`converged`. A solve that
+    stopped without converging keeps the objective evaluated at the point it
+    returned (inf when that is not finite), never the solver's own report.
     """
     from .problem import LocalResult
 
@@ -180,7 +197,12 @@ def solve_start(problem, z0):
                            seconds=time.perf_counter() - t0, z0=np.asarray(z0, float))
     ok = converged(problem, res)
     f = res.f if np.isfinite(res.f) and np.all(np.isfinite(res.z)) else np.inf
-    return replace(res, success=ok, f=float(f))
+    if not ok and np.isfinite(f):
+        # a solver that gave up may report anything (IPOPT: f = 0 after an invalid
+        # number); keep only a true evaluation at the point it returned
+        with np.errstate(all="ignore"):
+            f = problem.objective(res.z)
+    return replace(res, success=ok, f=float(f) if np.isfinite(f) else np.inf)
 
 
 def _solve_item(problem, item):
@@ -227,19 +249,21 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     if progress is None:
         progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
-    starts, n_trial = start_points(problem, config)
-    results = checkpoint.open(problem, config, starts) if checkpoint is not None else {}
-    resumed = len(results)
-    todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
-    best_f = min([r.f for r in results.values() if r.success] or [np.inf])
     interrupted = False
     own = executor is None
     setup = setup or Setup(value=problem)
     stream = None
+    results = {}
     with interrupts_as_keyboard() as guard:
         try:
             if own:
                 executor = make_executor(config.executor, config.workers, config.scheduler)
+            starts, n_trial = start_points(problem, config, executor, setup)
+            if checkpoint is not None:
+                results = checkpoint.open(problem, config, starts)
+            resumed = len(results)
+            todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
+            best_f = min([r.f for r in results.values() if r.success] or [np.inf])
             stream = executor.stream(setup, _solve_item, todo)
             for i, res in stream:
                 with guard.deferred():  # a received start is always recorded
@@ -250,9 +274,11 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
                         best_f = min(best_f, res.f)
                     _progress(len(results), len(starts), best_f, progress)
         except KeyboardInterrupt:
+            if stream is None:  # nothing was started: nothing to keep
+                raise
             interrupted = True
             with guard.deferred(swallow=True):
-                for i, res in (stream.stop() if stream is not None else []):
+                for i, res in stream.stop():
                     results.setdefault(i, res)
                     if checkpoint is not None:
                         checkpoint.append(i, res)

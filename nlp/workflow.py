@@ -96,8 +96,10 @@ def _fdac_of(model, case):
     Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof,
                       tg.ground_r)
     names = [c.name for c in case.channels]
+    # FRAC compares complex FRFs: magnitude-only data have no phase to compare
+    fr = frac(Ha, tg.H).tolist() if case.has_phase else [None] * len(names)
     return (dict(zip(names, fdac(Ha, tg.H).tolist())), float(fdac_overall(Ha, tg.H)),
-            dict(zip(names, frac(Ha, tg.H).tolist())))
+            dict(zip(names, fr)))
 
 
 def _modes_of(model, case):
@@ -106,7 +108,18 @@ def _modes_of(model, case):
     fc = case.config.frequencies
     det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
-                         fmin=fc.fmin, fmax=fc.fmax)
+                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase)
+
+
+def _log_quality(q, log):
+    """One line per screened channel with spikes or dropouts."""
+    if not q["channels"]:
+        log("records screened: no spikes or dropouts")
+    for ch, c in q["channels"].items():
+        log(f"records: {ch}: {c['spikes']} spikes, {c['dropouts']} dropouts "
+            f"({100 * c['fraction_flagged']:.2g} % of samples)"
+            + (", replaced by interpolation" if q["removed"] else
+               " (data.screen.remove: true replaces them by interpolation)"))
 
 
 def _table1(results, average):
@@ -159,6 +172,11 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
         summary["fdac_overall"][label or "all"] = overall
         summary["frac"].update(fr)
         summary["modes"][label or "all"] = _modes_of(model, case)
+        if case.quality is not None:
+            summary["data_quality"] = case.quality.to_dict()
+    if not cfg.data.has_phase:
+        summary["needs_phase"] = {"metrics": ["FRAC", "MAC"], "reason": f"data.format "
+                                  f"{cfg.data.format} has no phase; FDAC compares magnitudes"}
     if len(results) > 1:
         avg = {}
         for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
@@ -170,8 +188,10 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
     log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
     for label, rows in summary["modes"].items():
         log(f"measured modes ({label}, peak picking) vs model: " + "; ".join(
-            f"{r['f_measured_hz']:.3f} Hz {100 * r['frequency_error']:+.2f} %, MAC {r['mac']:.3f}"
-            for r in rows))
+            f"{r['f_measured_hz']:.3f} Hz {100 * r['frequency_error']:+.2f} %, "
+            + ("MAC needs phase" if r["mac"] is None else f"MAC {r['mac']:.3f}") for r in rows))
+    if "data_quality" in summary:
+        _log_quality(summary["data_quality"], log)
     if cfg.data.validation_file:
         vcfg = cfg
         if cfg.data.validation_force_floor is not None:
