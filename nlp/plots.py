@@ -47,7 +47,6 @@ def save_figure(fig, path, dpi=110):
         fig.savefig(tmp, dpi=dpi, format="png")
         os.replace(tmp, path)
     finally:
-        plt.close(fig)
         if os.path.exists(tmp):  # a failed save leaves no empty .tmp-* behind
             os.unlink(tmp)
     return path

@@ -264,7 +264,6 @@ def _run_report(out):
         d = out if label is None else os.path.join(out, label)
         if os.path.isfile(os.path.join(d, "result.json")):
             parts.append(_update_section(out, d, label))
-    parts.append(_provenance_section(s.get("provenance")))
     parts.append("</body></html>")
     return parts
 
