@@ -38,6 +38,7 @@ class ParameterConfig:
     bounds: dict = field(default_factory=dict)    # name -> (lo, hi) physical
     ties: dict = field(default_factory=dict)      # label -> [names]
     total_mass: float = None
+    prior: dict = field(default_factory=dict)     # masses|stiffnesses|name -> relative 1-sigma
 
 
 @dataclass(frozen=True)
@@ -271,7 +272,7 @@ def _model(rd, d, base):
 
 def _parameters(rd, d):
     rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
-                                    "bounds", "tie", "total_mass"})
+                                    "bounds", "tie", "total_mass", "prior"})
     out = {}
     for key in ("stiffness_bounds", "mass_bounds"):
         if key in d:
@@ -293,6 +294,9 @@ def _parameters(rd, d):
         ties[str(label)] = tuple(names)
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    pm = rd.mapping(d, "parameters.prior")
+    out["prior"] = {str(k): rd.number(pm, k, f"parameters.prior.{k}", required=True, positive=True)
+                    for k in pm}
     return ParameterConfig(**out)
 
 
