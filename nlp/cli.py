@@ -31,6 +31,17 @@ def _diagnose(args):
     return 0
 
 
+def _batch(args):
+    from .batch import find_records, run_batch
+    from .config import load_case
+
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
+                                "solver": None})
+    records = find_records(args.records)
+    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "batch"))
+    return run_batch(cfg, records, out, workers=args.workers or 1, resume=args.resume)
+
+
 def _report(args):
     from .report import write_report
 
@@ -54,6 +65,15 @@ def _parser():
     dg.add_argument("--out", help="output folder (default: diagnosis/ beside the case file)")
     dg.add_argument("--starts", type=int, help="baseline starts (a quarter are used)")
     dg.add_argument("--seed", type=int, help="seed of the start points")
+    bt = sub.add_parser("batch", help="update the same model from every record (monitoring)")
+    bt.add_argument("case", help="case YAML file (data.file is replaced by each record)")
+    bt.add_argument("records", nargs="+", help="record files, folders or glob patterns")
+    bt.add_argument("--out", help="output folder (default: batch/ beside the case file)")
+    bt.add_argument("--starts", type=int, help="local solves per record")
+    bt.add_argument("--seed", type=int, help="seed of the trial points")
+    bt.add_argument("--workers", type=int, help="records updated at once (worker processes)")
+    bt.add_argument("--resume", action="store_true", help="keep the records an interrupted "
+                    "batch finished and update only the rest")
     rep = sub.add_parser("report", help="rebuild report.html of a finished run folder")
     rep.add_argument("dir", help="the run's output folder")
     return ap
@@ -62,7 +82,8 @@ def _parser():
 def main(argv=None):
     args = _parser().parse_args(argv)
     try:
-        return {"run": _run, "diagnose": _diagnose, "report": _report}[args.command](args)
+        return {"run": _run, "diagnose": _diagnose, "batch": _batch,
+                "report": _report}[args.command](args)
     except InputError as exc:
         print(f"frf-nlp: error: {exc}", file=sys.stderr)
         return 2

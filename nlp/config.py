@@ -21,12 +21,23 @@ RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
 
 
+MODEL_TYPES = ("shear_frame", "matrices", "opensees")
+
+
 @dataclass(frozen=True)
 class ModelConfig:
-    type: str                      # "shear_frame" | "matrices"
+    type: str                      # "shear_frame" | "matrices" | "opensees"
     masses: tuple = ()             # shear_frame: kg per floor
     stiffnesses: tuple = ()        # shear_frame: N/m per story
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
+    script: str = None             # opensees: the OpenSeesPy model script
+    M: object = None               # matrices: path or {file, key} of M0 (.mtx, .npz, .mat)
+    K: object = None               # matrices: same for K0
+    dof_map: str = None            # matrices: (node, dof) of each row (CSV or array)
+    constrained: tuple = ()        # matrices: (node, dof) rows to remove
+    stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
+    mass_groups: dict = field(default_factory=dict)
+    ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
 
 
 @dataclass(frozen=True)
@@ -57,17 +68,22 @@ class DampingConfig:
 class ExcitationConfig:
     type: str = "ground"                   # ground | force
     floor: int = None                      # force: 1-based
+    node: int = None                       # force at a node ...
+    dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
+    direction: object = None               # ground: DOF of the table motion (default ux)
 
 
 @dataclass(frozen=True)
 class ChannelConfig:
     name: str
-    floor: int                             # 1-based
+    floor: int                             # 1-based (None when node and dof are given)
     output: str                            # derived from quantity for time histories
     column: object                         # FRF file: 0-based index; records: column name
     weight: float = 1.0
     quantity: str = None                   # time histories: acceleration | displacement | velocity
     unit: str = None                       # time histories: unit in the file
+    node: int = None                       # sensor at a node ...
+    dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
 
 
 @dataclass(frozen=True)
@@ -249,8 +265,9 @@ def load_case(path, overrides=None):
 
 
 def _model(rd, d, base):
-    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file"})
-    kind = rd.choice(d, "type", "model.type", ("shear_frame", "matrices"), "shear_frame")
+    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+    kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
             raise rd.err("model.masses", "a list of floor masses in kg (required)")
@@ -262,12 +279,74 @@ def _model(rd, d, base):
             raise rd.err("model.stiffnesses", f"{len(m)} values, one per story like model.masses",
                          f"{len(k)} values")
         return ModelConfig(type=kind, masses=m, stiffnesses=k)
-    if "file" not in d:
-        raise rd.err("model.file", "a .npz or .mat file with M0, K0, M_infl, K_infl")
-    f = os.path.join(base, str(d["file"]))
+    if kind == "opensees":
+        return _opensees_model(rd, d, base)
+    if "file" in d:
+        f = os.path.join(base, str(d["file"]))
+        if not os.path.isfile(f):
+            raise rd.err("model.file", "an existing file", d["file"])
+        return ModelConfig(type=kind, file=f)
+    if "M" not in d or "K" not in d:
+        raise rd.err("model.K" if "M" in d else "model.M", "matrix files model.M and model.K "
+                     "(.mtx, .npz, .mat), or model.file with M0, K0, M_infl, K_infl")
+    out = {key: _matrix_spec(rd, d[key], f"model.{key}", base) for key in ("M", "K")}
+    for section in ("stiffness_groups", "mass_groups"):
+        groups = rd.mapping(d, f"model.{section}")
+        out[section] = {str(k): _matrix_spec(rd, v, f"model.{section}.{k}", base)
+                        for k, v in groups.items()}
+    if not out["stiffness_groups"] and not out["mass_groups"]:
+        raise rd.err("model.stiffness_groups", "at least one group matrix (an updating parameter)")
+    if d.get("dof_map") is not None:
+        out["dof_map"] = _existing(rd, d["dof_map"], "model.dof_map", base)
+    cons = d.get("constrained") or []
+    if not isinstance(cons, list) or not all(isinstance(c, list) and len(c) == 2 for c in cons):
+        raise rd.err("model.constrained", "a list of [node, dof] pairs", cons)
+    out["constrained"] = tuple((c[0], c[1]) for c in cons)
+    if d.get("ndm") is not None:
+        out["ndm"] = rd.number(d, "ndm", "model.ndm", integer=True)
+        if out["ndm"] not in (2, 3):
+            raise rd.err("model.ndm", "2 or 3", out["ndm"])
+    return ModelConfig(type=kind, **out)
+
+
+def _existing(rd, name, key, base):
+    f = os.path.join(base, str(name))
     if not os.path.isfile(f):
-        raise rd.err("model.file", "an existing file", d["file"])
-    return ModelConfig(type=kind, file=f)
+        raise rd.err(key, "an existing file (relative to the case file)", name)
+    return f
+
+
+def _matrix_spec(rd, v, key, base):
+    """A matrix file: a path, or {file, key} for one array of an NPZ/MAT file."""
+    if isinstance(v, dict):
+        rd.check_keys(v, key, {"file", "key"})
+        if "file" not in v:
+            raise rd.err(f"{key}.file", "the matrix file's path")
+        return {"file": _existing(rd, v["file"], f"{key}.file", base),
+                "key": None if v.get("key") is None else str(v["key"])}
+    if not isinstance(v, str):
+        raise rd.err(key, "a matrix file path (.mtx, .npz, .mat) or {file, key}", v)
+    return _existing(rd, v, key, base)
+
+
+def _opensees_model(rd, d, base):
+    if "script" not in d:
+        raise rd.err("model.script", "the path of an OpenSeesPy model script (required)")
+    script = _existing(rd, d["script"], "model.script", base)
+    out = {}
+    for section in ("stiffness_groups", "mass_groups"):
+        groups = rd.mapping(d, f"model.{section}")
+        for k, v in groups.items():
+            ok = isinstance(v, str) or (isinstance(v, list) and v and all(
+                isinstance(x, int) and not isinstance(x, bool) for x in v)) or (
+                isinstance(v, dict) and set(v) <= {"elements", "nodes"})
+            if not ok:
+                raise rd.err(f"model.{section}.{k}", "a group name of the script's `groups`, a "
+                             "list of element tags, or {elements: [...], nodes: [...]}", v)
+        out[section] = {str(k): v for k, v in groups.items()}
+    if not out["stiffness_groups"] and not out["mass_groups"]:
+        raise rd.err("model.stiffness_groups", "at least one element group (an updating parameter)")
+    return ModelConfig(type="opensees", script=script, **out)
 
 
 def _parameters(rd, d):
@@ -332,12 +411,40 @@ def _damping(rd, d, n):
 
 
 def _excitation(rd, d):
-    rd.check_keys(d, "excitation", {"type", "floor"})
+    rd.check_keys(d, "excitation", {"type", "floor", "node", "dof", "direction"})
     kind = rd.choice(d, "type", "excitation.type", ("ground", "force"), "ground")
-    floor = None
-    if kind == "force":
-        floor = rd.number(d, "floor", "excitation.floor", required=True, positive=True, integer=True)
-    return ExcitationConfig(type=kind, floor=floor)
+    if kind == "ground":
+        if "floor" in d or "node" in d:
+            raise rd.err("excitation", "no floor or node for ground input (direction: ux, uy ...)")
+        return ExcitationConfig(type=kind, direction=_dof_spec(rd, d, "direction", "excitation"))
+    floor, node, dof = _location(rd, d, "excitation")
+    return ExcitationConfig(type=kind, floor=floor, node=node, dof=dof)
+
+
+def _dof_spec(rd, d, key, path):
+    """A DOF as given (number 1-6 or name ux..rz); checked against the model at assembly."""
+    v = d.get(key)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, str)) or (isinstance(v, int) and not 1 <= v <= 6):
+        raise rd.err(f"{path}.{key}", "a DOF number 1-6 or a name (ux, uy, uz, rx, ry, rz)", v)
+    return v
+
+
+def _location(rd, d, path):
+    """(floor, node, dof): a floor (shear-frame shorthand, or a row of a matrix model)
+    or a node and DOF of an imported model."""
+    if "node" in d or "dof" in d:
+        if "floor" in d:
+            raise rd.err(f"{path}.floor", "either floor or node and dof, not both", d["floor"])
+        node = rd.number(d, "node", f"{path}.node", required=True, integer=True)
+        if d.get("dof") is None:
+            raise rd.err(f"{path}.dof", "a DOF number 1-6 or a name (ux, uy, uz, rx, ry, rz)")
+        return None, node, _dof_spec(rd, d, "dof", path)
+    if "floor" not in d:
+        raise rd.err(f"{path}.floor", "a floor number (required, 1-based), or node and dof")
+    return rd.number(d, "floor", f"{path}.floor", required=True, positive=True, integer=True), \
+        None, None
 
 
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
@@ -382,27 +489,32 @@ def _data(rd, d, base):
         key = f"data.channels[{i}]"
         if not isinstance(c, dict):
             raise rd.err(key, "a mapping {name, floor, output, column}", c)
-        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit"})
+        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit",
+                               "node", "dof"})
         name = str(c.get("name", f"ch{i + 1}"))
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
-        floor = rd.number(c, "floor", f"{key}.floor", required=True, positive=True, integer=True)
+        floor, node, dof = _location(rd, c, key)
         w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         if records:
+            if node is not None:
+                raise rd.err(f"{key}.node", "a floor (time-history channels are floors of a "
+                             "shear frame)", node)
             q = rd.choice(c, "quantity", f"{key}.quantity",
                           ("acceleration", "displacement", "velocity"), None)
             ground = inp["quantity"] == "ground_acceleration"
             output = _QUANTITY_OUTPUT.get(q, "absolute_accelerance" if ground else "accelerance")
             out.append(ChannelConfig(name=name, floor=floor, output=output,
                                      column=str(c.get("column", name)), weight=w, quantity=q,
-                                     unit=c.get("unit")))
+                                     unit=c.get("unit"), node=node, dof=dof))
             continue
         output = rd.choice(c, "output", f"{key}.output", OUTPUTS, None)
         col = rd.number(c, "column", f"{key}.column", i, integer=True)
         if col < 0:
             raise rd.err(f"{key}.column", "a column index >= 0", col)
-        out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w))
+        out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
+                                 node=node, dof=dof))
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):

@@ -1,6 +1,7 @@
 """Missing physics: locate the mismatch, name what the model left out, model it.
 
-``diagnose(cfg, out)`` runs, in order:
+``diagnose(cfg, out)`` runs, in order (after the set-up screening of nlp/screen.py,
+which stops with the verdict setup_error when the data contradict the case):
 
 1. the baseline update (the case's own model), with every residual divided by
    its noise level, so the objective is a chi-square;
@@ -530,6 +531,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     the whole measured band.
     """
     case = assemble(cfg)
+    screening = _screen(case, out, log) if widen == 1 else None
+    if screening is not None and screening["verdict"] == "setup_error":
+        return screening
     fit = _windows(cfg, case, widen)
     held = np.setdiff1d(_windows(cfg, case, 3 * widen), fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
@@ -600,7 +604,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "indistinct": indistinct, "tried": tried, "cells": cells, "fit": fit, "held": held,
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
-           "whole": whole, "phi": phis[0] if phis else 1.0}
+           "whole": whole, "phi": phis[0] if phis else 1.0,
+           "screening": screening and screening["report"]}
     return _verdict(cfg, case, out, log, ctx)
 
 
@@ -780,6 +785,26 @@ def _whole_band(case, base, zb, improved, zi, fit):
             "map": maps, "extra_modes": extra}
 
 
+def _screen(case, out, log):
+    """Screen the data before fitting (nlp/screen.py). A case that contradicts its data
+    gets the verdict setup_error, written to out/diagnosis.json; otherwise the screening
+    is returned for the diagnosis to carry."""
+    from .results import write_json
+    from .screen import screen, setup_error_result
+    report = screen(case)
+    for w in report["warnings"]:
+        log(f"screening: {w['message']}")
+    if not report["setup_errors"]:
+        return {"verdict": None, "report": report}
+    result = setup_error_result(report)
+    os.makedirs(out, exist_ok=True)
+    write_json(os.path.join(out, "diagnosis.json"), result)
+    log("verdict: setup_error (the data contradict the case; no physics is blamed)")
+    for e in report["setup_errors"]:
+        log(f"  set-up error: {e['message']}")
+    return result
+
+
 def _statement(r):
     loc = r["location"]
     if "floor" in loc:
@@ -919,6 +944,8 @@ def _verdict(cfg, case, out, log, ctx):
               "whole_band": whole,
               "extra_modes": whole["extra_modes"] if whole else [],
               "suggested_measurements": suggestions}
+    if ctx.get("screening") is not None:
+        result["screening"] = ctx["screening"]
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, ctx["cells"], cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)

@@ -81,8 +81,10 @@ def summarize(case, problem, search):
     M0, K0, C0 = problem.matrices(params.z0)
     M, K, C = problem.matrices(z_best)
     tg = case.target
-    Ha0 = channel_frfs(M0, C0, K0, tg.omega, case.channels, tg.excitation, tg.force_dof)
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha0 = channel_frfs(M0, C0, K0, tg.omega, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
     cfg = case.config
     return {
         "case": cfg.name, "case_file": cfg.path,

@@ -76,7 +76,8 @@ def _fdac_of(model, case):
     """FDAC per channel, FDAC overall and FRAC per channel of a model against a case's data."""
     M, K, C = model
     tg = case.target
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof,
+                      tg.ground_r)
     names = [c.name for c in case.channels]
     return (dict(zip(names, fdac(Ha, tg.H).tolist())), float(fdac_overall(Ha, tg.H)),
             dict(zip(names, frac(Ha, tg.H).tolist())))
