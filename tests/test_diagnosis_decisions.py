@@ -41,8 +41,8 @@ def _case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
     if len(files) > 1:
         data["validation_file"] = files[1][0]
         data["validation_force_floor"] = files[1][1]
-    case = {"name": "t", "model": {"type": "shear_frame", "masses": list(m_nom),
-                                  "stiffnesses": list(k_nom)},
+    case = {"name": "t", "model": {"type": "shear_frame", "masses": [float(x) for x in m_nom],
+                                  "stiffnesses": [float(x) for x in k_nom]},
             "parameters": parameters, "damping": damping,
             "excitation": {"type": "force", "floor": files[0][1]}, "data": data,
             "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.5, "fmax": 15.0},
@@ -63,6 +63,7 @@ def _frame(m, k, zeta=0.015):
     return M, a0 * M + a1 * K, K
 
 
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
 def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
     rng = np.random.default_rng(1)
     m_nom, k_nom = [5.0, 5.0, 5.0], [3000.0, 2800.0, 2600.0]
@@ -84,6 +85,7 @@ def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
     assert res["parameter_changes"] == []
 
 
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
 def test_concentrated_damper_from_the_fitted_damping(tmp_path):
     rng = np.random.default_rng(2)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
@@ -122,6 +124,7 @@ def _coupled(k, kc):
     return K + kc * np.outer(e, e)
 
 
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
 @pytest.mark.parametrize("same_structure", [True, False], ids=["consistent", "inconsistent"])
 def test_finding_must_hold_on_the_other_test(tmp_path, same_structure):
     """A coupling between floors 1 and 3, tested with the shaker at floor 1 and at floor 2.
