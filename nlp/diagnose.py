@@ -551,7 +551,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         f"held-out {held_b:.2f} on {rh0.size} points")
     state = {"current": [], "z": b_res.z, "chi": chi_b, "held": held_b, "problem": base}
     found, alternatives, absorbed, ties, tried, indistinct = [], [], [], [], [], []
-    phis = []
+    phis, unconfirmed, consistency = [], [], []
+    others = _setup_others(cfg)
     for rnd in range(max_findings):
         if _adequate(state["chi"], nu, state["held"]) and rnd > 0:
             break
@@ -573,6 +574,10 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
                 f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
         tried += results
         accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
+        if others and accepted:
+            accepted, rejected, recs = _hold_on_others(others, state, accepted, log)
+            unconfirmed += rejected
+            consistency += recs
         if not accepted:
             break
         best = accepted[0]
@@ -598,12 +603,18 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
     inside = _inside_model_class(cfg, case, state, absorbed, log)
-    consistency = _consistency(cfg, found, state, log)
+    final = {(r["physics"], repr(r["location"])) for r in found}
+    consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
+                   or not c["holds"]]
+    seen = set(final)
+    unconfirmed = [r for r in unconfirmed if (r["physics"], repr(r["location"])) not in seen
+                   and not seen.add((r["physics"], repr(r["location"])))]
     whole = _whole_band(case, base, b_res.z, state["problem"], state["z"], fit)
     ctx = {"base": base, "b_res": b_res, "found": found, "alternatives": alternatives,
            "indistinct": indistinct, "tried": tried, "cells": cells, "fit": fit, "held": held,
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
+           "unconfirmed": unconfirmed,
            "whole": whole, "phi": phis[0] if phis else 1.0,
            "screening": screening and screening["report"]}
     return _verdict(cfg, case, out, log, ctx)
@@ -705,47 +716,70 @@ def _other_tests(cfg):
     return out
 
 
-def _consistency(cfg, found, state, log):
-    """Refit the final model on each other test; does every finding hold there?
-
-    A finding holds on a test when its effect is clearly non-zero there too
-    (|value| > 3 standard errors) and the two estimates agree within 3 combined
-    quasi-likelihood standard errors.
-    """
-    tests = _other_tests(cfg)
-    if not found or not tests:
-        return []
-    enr = [r["enrichment"] for r in found]
+def _setup_others(cfg):
+    """Each other test of the structure, assembled once: case, fitted points, target."""
     out = []
-    for label, c_cfg, path in tests:
+    for label, c_cfg, path in _other_tests(cfg):
         c2 = assemble(c_cfg, data_file=path)
         idx = _windows(c_cfg, c2, 1)
-        pr2 = _problem(c2, _target(c2, idx, noise_sigma(c2, idx)), enr)
-        res = _fit(pr2, [state["z"], pr2.z0])
-        th2 = pr2.theta(res.z)
-        se2 = _quasi_se(pr2, res.z)[0]
-        for r in found:
-            names = list(r["parameters"])
-            v1 = [r["parameters"][n] for n in names]
-            s1 = [r["uncertainty"][n] for n in names]
-            ix = [pr2.params.names.index(n) for n in names]
-            v2 = [float(th2[i]) for i in ix]
-            s2 = [float(se2[i]) for i in ix]
-            there, why = significance(r["physics"], names, v2, s2)
-            e1 = effect_terms(r["physics"], names, v1, s1)
-            e2 = effect_terms(r["physics"], names, v2, s2)
-            same = all(agree(a[1], a[2], b[1], b[2]) for a, b in zip(e1, e2))
-            rec = {"test": label, "physics": r["physics"], "location": r["location"],
-                   "here": dict(zip(names, v1)), "here_uncertainty": dict(zip(names, s1)),
-                   "there": dict(zip(names, v2)), "there_uncertainty": dict(zip(names, s2)),
-                   "holds": bool(there and same),
-                   "reason": "" if there and same else (why or "the two estimates differ by "
-                                                        "more than 3 combined standard errors")}
-            out.append(rec)
-            log(f"  {r['physics']} {r['location']} on {label}: "
-                + ", ".join(f"{n} {a:.4g}+-{b:.2g}" for n, a, b in zip(names, v2, s2))
-                + (" (holds)" if rec["holds"] else f" (does not hold: {rec['reason']})"))
+        out.append({"label": label, "case": c2, "target": _target(c2, idx, noise_sigma(c2, idx)),
+                    "ref": {}})
     return out
+
+
+def _hold_on_others(others, state, accepted, log):
+    """Keep the accepted candidates that hold on every other test of the structure.
+
+    On each other test, the current model with and without the candidate is
+    fitted (starting from this test's optimum). The candidate holds there when it
+    is accepted on its own evidence (scaled BIC drop >= BIC_ACCEPT, effect > 3
+    standard errors, no error above its value) and its effect agrees with this
+    test's within 3 combined standard errors. Returns (kept, rejected, records).
+    """
+    key = len(state["current"])
+    for o in others:
+        if key not in o["ref"]:
+            pr = _problem(o["case"], o["target"], state["current"])
+            o["ref"][key] = 2 * _fit(pr, [state["z"], pr.z0]).f
+    kept, rejected, records = [], [], []
+    for r in accepted:
+        names = list(r["parameters"])
+        v1 = [r["parameters"][n] for n in names]
+        s1 = [r["uncertainty"][n] for n in names]
+        holds_all = True
+        for o in others:
+            pr2 = _problem(o["case"], o["target"], state["current"] + [r["enrichment"]])
+            res = _fit(pr2, [r["z"], pr2.z0])
+            th2, se2 = pr2.theta(res.z), _quasi_se(pr2, res.z)[0]
+            ix = [pr2.params.names.index(n) for n in names]
+            v2, s2 = [float(th2[i]) for i in ix], [float(se2[i]) for i in ix]
+            chi2 = 2 * res.f
+            phi2 = dispersion(chi2, pr2.n_used - pr2.params.n_z)
+            d2 = scaled_delta_bic(chi2, o["ref"][key], len(names), pr2.n_used, phi2)
+            sig_ok, why = significance(r["physics"], names, v2, s2)
+            same = all(agree(a[1], a[2], b[1], b[2]) for a, b in
+                       zip(effect_terms(r["physics"], names, v1, s1),
+                           effect_terms(r["physics"], names, v2, s2)))
+            holds = bool(d2 <= -BIC_ACCEPT and sig_ok and same)
+            reason = ("" if holds else
+                      f"its BIC change there is only {d2:.1f}" if d2 > -BIC_ACCEPT else
+                      why if not sig_ok else
+                      "the two estimates differ by more than 3 combined standard errors")
+            records.append({"test": o["label"], "physics": r["physics"], "location": r["location"],
+                            "here": dict(zip(names, v1)), "here_uncertainty": dict(zip(names, s1)),
+                            "there": dict(zip(names, v2)), "there_uncertainty": dict(zip(names, s2)),
+                            "delta_bic_there": d2, "holds": holds, "reason": reason})
+            log(f"    {r['physics']} {r['location']} on {o['label']}: dBIC {d2:.1f}, "
+                + ", ".join(f"{n} {a:.4g}+-{b:.2g}" for n, a, b in zip(names, v2, s2))
+                + (" (holds)" if holds else f" (does not hold: {reason})"))
+            holds_all &= holds
+        if holds_all:
+            kept.append(r)
+        else:
+            r["accepted"] = False
+            r["why_not"] = "does not hold on another test of the structure"
+            rejected.append(r)
+    return kept, rejected, records
 
 
 # --------------------------------------------------------------- whole band
@@ -859,9 +893,7 @@ def _verdict(cfg, case, out, log, ctx):
     found, indistinct, tried = ctx["found"], ctx["indistinct"], ctx["tried"]
     chi_b, nu, held_b = ctx["chi_b"], ctx["nu"], ctx["held_b"]
     nonlin, inside, consistency = ctx["nonlin"], ctx["inside"], ctx["consistency"]
-    failed = {(c["physics"], repr(c["location"])) for c in consistency if not c["holds"]}
-    unconfirmed = [r for r in found if (r["physics"], repr(r["location"])) in failed]
-    confirmed = [r for r in found if r not in unconfirmed]
+    unconfirmed, confirmed = ctx["unconfirmed"], found
     suggestions, statements = [], []
     nonlin_found = bool(nonlin and nonlin["found"])
     verdict = _classify(confirmed, unconfirmed, indistinct, nonlin_found, inside["findings"],
@@ -904,15 +936,15 @@ def _verdict(cfg, case, out, log, ctx):
                               for n, v in c["there"].items())
             statements.append(
                 f"{_statement(r)[:-1]} on {os.path.basename(cfg.data.file)}, but it does not hold on "
-                f"{c['test']} ({there}): {c['reason']}. It is not reported as a finding.")
+                f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
     if unconfirmed and verdict == "ambiguous":
         statements.append("The model is inadequate here: no candidate holds on every test of "
-                          "this structure, so they cannot be told apart: "
-                          + "; ".join(_where(r) for r in unconfirmed) + ".")
+                          "this structure, so none can be named (seen on this test only: "
+                          + "; ".join(_where(r) for r in unconfirmed) + ").")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
                           "missing than the candidate families describe.")
-    if verdict == "ambiguous" and not found and not indistinct:
+    if verdict == "ambiguous" and not found and not indistinct and not unconfirmed:
         statements.append("The model does not explain the data within the noise, and no "
                           "candidate family explains the mismatch.")
     for o in inside["parameter_changes"]:

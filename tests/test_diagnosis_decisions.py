@@ -197,3 +197,38 @@ def test_effect_within_three_standard_errors_is_not_accepted():
     r = _result("sensor_gain", {"channel": "a1"}, 1000.0, value=0.05, se=0.02)
     _decide([r], 4000.0, 10.0, 190, 200)
     assert not r["significant"] and not r["accepted"]
+
+
+def test_extra_mode_found_with_its_channels_and_nothing_else():
+    """A 3-storey frame 'measured' with an appendage on floor 3 tuned to 11 Hz (a mode the
+    3-DOF model lacks); the model is the frame alone. The extra mode is reported at its
+    frequency on the channels that see it; the frame's own modes and zeros are not."""
+    from nlp.diagnosis.band import extra_modes, local_sigma
+    rng = np.random.default_rng(5)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.01)
+    H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
+    ms, fs = 0.05, 11.0                       # 1 % of a floor, 0.5 % damping
+    ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * 0.005 * ms * 2 * np.pi * fs
+    Ma = np.diag([5.0, 5.0, 5.0, ms])
+    Ka = np.zeros((4, 4))
+    Ka[:3, :3] = K
+    Ka[2, 2] += ks
+    Ka[2, 3] = Ka[3, 2] = -ks
+    Ka[3, 3] = ks
+    Ca = np.zeros((4, 4))
+    Ca[:3, :3] = C
+    Ca[2, 2] += cs
+    Ca[2, 3] = Ca[3, 2] = -cs
+    Ca[3, 3] = cs
+    H_meas = _accelerance(Ma, Ca, Ka, 1, rng, noise=0.01)[:3]
+    Lx, La = np.log(np.abs(H_meas)), np.log(np.abs(H_model))
+    sig = local_sigma(Lx)
+    modes = extra_modes(F, Lx, La, sig, np.ones_like(Lx, bool))
+    assert len(modes) == 1, modes
+    assert abs(modes[0]["frequency_hz"] - fs) < 0.3
+    assert 2 in modes[0]["channels"]          # floor 3 carries the appendage
+    # the model itself, measured with noise: no extra mode
+    H_same = _accelerance(M, C, K, 1, rng, noise=0.01)
+    Lx = np.log(np.abs(H_same))
+    assert extra_modes(F, Lx, La, local_sigma(Lx), np.ones_like(Lx, bool)) == []

@@ -16,6 +16,7 @@ __all__ = ["band_mask", "local_sigma", "band_map", "extra_modes"]
 MIN_EXCESS = np.log(1.2)   # a peak the model misses by less than 20 % is not a new mode
 PEAK_Z = 5.0               # a resonance rises this many local noise sigmas above the model
 NEAR_MODEL = 0.02          # within 2 % of a model peak: a known mode, not an extra one
+NEAR_ANTI = 0.05           # within 5 % of a model anti-resonance: a shifted zero, not a mode
 MAX_SCATTER = 0.3          # local scatter of ln|H| above this: no coherent data there
 
 
@@ -109,6 +110,21 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
             excess = lm[p] - L_model[c, idx][p]
             if excess > max(MIN_EXCESS, PEAK_Z * sig[p]):
                 hits.append((fp, c, float(excess)))
+        # a lightly damped mode can also show as a sharp step or dip (its peak falls between
+        # two bins, or the mode's phase makes it cancel the rest of the response): a second
+        # difference of ln|H| that the model does not have
+        d2 = np.diff(lm, 2) - np.diff(L_model[c, idx], 2)
+        thr = np.maximum(MIN_EXCESS, PEAK_Z * np.sqrt(6.0) * sig[1:-1])
+        sharp, _ = find_peaks(np.abs(d2), height=0.0, distance=5)
+        apk, _ = find_peaks(-L_model[c, idx], prominence=0.1)
+        f_anti = f[idx][apk]  # the model's anti-resonances: a shifted one is not a new mode
+        for q in sharp[np.abs(d2[sharp]) > thr[sharp]]:
+            fp = f[idx][q + 1]
+            if f_model.size and np.min(np.abs(f_model - fp)) <= NEAR_MODEL * fp:
+                continue
+            if f_anti.size and np.min(np.abs(f_anti - fp)) <= NEAR_ANTI * fp:
+                continue
+            hits.append((fp, c, float(abs(d2[q]))))
     hits.sort()
     modes = []
     for fp, c, ex in hits:
