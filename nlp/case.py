@@ -1,10 +1,12 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
 from .identify import SCALE_EXPLANATION, scale_null_space
@@ -32,7 +34,10 @@ class Case:
     selected: np.ndarray     # indices into f used in the objective
     target: Target
     coherence: np.ndarray = None   # (n_ch, n_f) when estimated from records
-    records: object = None         # readers.TimeHistories when the data are records
+    records: object = None         # readers.TimeHistories when the data are records (the first)
+    n_averages: int = 1            # Welch segments averaged in the estimate (all records)
+    quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
+    has_phase: bool = True         # False for magnitude-only FRF files
 
 
 # Imported models up to this size run on the dense symbolic FRF; larger ones stay sparse.
@@ -119,30 +124,55 @@ def _damping(cfg, model):
     return GeneralDamping(C0=C0)
 
 
+_UNIT = {"stiffness": "N/m", "mass": "kg"}
+
+
+def _shown(v):
+    return {"multiplier": v.value} if isinstance(v, Multiplier) else v
+
+
+def _relative(path, key, v, nominal, physical, group):
+    """Relative change theta (Eqns 23-24) of a case value: a physical value (kg, N/m), or
+    ``{multiplier: x}`` for any mass or stiffness. A model whose parameters scale matrix
+    groups has no physical value to give, so a bare number there is refused: the old
+    meaning (a multiplier) would otherwise change silently."""
+    if isinstance(v, Multiplier):
+        return tuple(x - 1 for x in v.value) if isinstance(v.value, tuple) else v.value - 1
+    if not physical:
+        raise InputError(path, key, f"{{multiplier: x}} (this {group} parameter scales a matrix "
+                         f"group of the model and has no value in {_UNIT[group]})", v)
+    return tuple(x / nominal - 1 for x in v) if isinstance(v, tuple) else v / nominal - 1
+
+
 def _parameters(cfg, model, damping):
     pc = cfg.parameters
     path = cfg.path
     params = []
+    physical = cfg.model.type == "shear_frame"  # nominal values in kg and N/m
     for group, names, nominal, rel in (
             ("stiffness", model.alpha_names, model.alpha_nominal, pc.stiffness_bounds),
             ("mass", model.beta_names, model.beta_nominal, pc.mass_bounds)):
         for name, nom in zip(names, nominal):
+            def theta(section, v, name=name, nom=nom):
+                return _relative(path, f"parameters.{section}.{name}", v, nom, physical, group)
             lo, hi = rel
             if name in pc.bounds:
-                lo, hi = (v / nom - 1 for v in pc.bounds[name])
-            init = pc.initial[name] / nom - 1 if name in pc.initial else 0.0
+                lo, hi = theta("bounds", pc.bounds[name])
+            init = theta("initial", pc.initial[name]) if name in pc.initial else 0.0
             fixed = name in pc.fixed
             if fixed:
-                init = pc.fixed[name] / nom - 1
-                if pc.fixed[name] <= 0:
-                    raise InputError(path, f"parameters.fixed.{name}", "a positive value", pc.fixed[name])
+                init = theta("fixed", pc.fixed[name])
+                if init <= -1:
+                    raise InputError(path, f"parameters.fixed.{name}", "a positive value",
+                                     _shown(pc.fixed[name]))
             elif not lo <= init <= hi:
                 raise InputError(path, f"parameters.initial.{name}",
                                  f"a value within the bounds [{nom * (1 + lo):g}, {nom * (1 + hi):g}]",
                                  nom * (1 + init))
             if lo <= -1:
                 raise InputError(path, f"parameters.bounds.{name}", "a lower bound > 0", nom * (1 + lo))
-            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom)))
+            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom),
+                                    unit=_UNIT[group] if physical else "x nominal"))
     d = cfg.damping
     if isinstance(damping, GeneralDamping):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
@@ -150,6 +180,11 @@ def _parameters(cfg, model, damping):
         lo_d, hi_d = damping.default_bounds()
     scales = damping.initial() if isinstance(damping, ModalDamping) else np.ones(len(damping.names))
     for name, init, lo, hi, s in zip(damping.names, damping.initial(), lo_d, hi_d, scales):
+        for section in ("fixed", "initial", "bounds"):
+            if isinstance(getattr(pc, section).get(name), Multiplier):
+                raise InputError(path, f"parameters.{section}.{name}", "a value in the damping "
+                                 "model's own units (damping parameters have no nominal value "
+                                 "to multiply)", "{multiplier: ...}")
         if name in pc.bounds:
             lo, hi = pc.bounds[name]
         fixed = name in pc.fixed
@@ -174,34 +209,86 @@ def _parameters(cfg, model, damping):
             if nm in tie_of:
                 raise InputError(path, f"parameters.tie.{label}", "each parameter in one tie only", nm)
             tie_of[nm] = label
-    params = [Parameter(p.name, p.group, p.initial, p.lower, p.upper, p.fixed, tie_of.get(p.name),
-                        p.scale, p.nominal) for p in params]
+    params = [replace(p, tie=tie_of.get(p.name)) for p in params]
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
-def _read_data(cfg, path=None):
-    """(f, H, coherence, records) of the case's data file (or another test's)."""
+def _record_spec(d):
+    """Channel specs for readers.read_time_histories: the input, then each channel."""
+    inp = d.input
+    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"],
+                          "from": inp.get("from"), "scale": inp.get("scale", 1.0),
+                          "sign": inp.get("sign", 1)}}
+    for c in d.channels:
+        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit,
+                        "scale": c.scale, "sign": c.sign}
+    return {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
+
+
+def _read_records(cfg, paths):
+    """Records of the case (screened, and repaired when asked), the FRF estimate over
+    all their segments, and the quality report."""
+    from .quality import screen_records
+
     d = cfg.data
-    path = path or d.file
+    spec = _record_spec(d)
+    xs, ys, reports, first = [], [], [], None
+    for path in paths:
+        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
+            raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
+                             rec.fs)
+        sc = d.screen
+        data, rep = screen_records(rec.data, rec.fs, remove=sc.remove,
+                                   spike_threshold=sc.spike_threshold,
+                                   dropout_min_samples=sc.dropout_min_samples, t0=float(rec.t[0]))
+        if sc.remove:
+            rec = type(rec)(t=rec.t, fs=rec.fs, data=data)
+        first = first or rec
+        reports.append((path, rep))
+        xs.append(rec.data["__input__"])
+        ys.append(np.array([rec.data[c.name] for c in d.channels]))
+    n = min(x.size for x in xs)
+    nperseg = n if d.nperseg == "all" else d.nperseg
+    noverlap = None if nperseg is None else int(d.overlap * nperseg)
+    if nperseg is None:  # the default segment, with the case's overlap (not scipy's half)
+        from .estimate import _default_nperseg
+        nperseg = _default_nperseg(n)
+        noverlap = int(d.overlap * nperseg)
+    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                       noverlap=noverlap, window=d.window, source=paths[0])
+    return est, first, reports
+
+
+def _read_data(cfg, path=None):
+    """(f, H, coherence, records, n_averages, quality) of the case's data (or another test's)."""
+    d = cfg.data
     if d.type == "frf":
+        path = path or d.file
         fmt = d.format
         if fmt == "auto":
             fmt = "npz" if path.endswith(".npz") else "complex"
-        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex")
-        return f, H * d.unit_factor, None, None
-    inp = d.input
-    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"]}}
-    for c in d.channels:
-        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit}
-    spec = {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
-    rec = read_time_histories(path, spec)
-    x = rec.data["__input__"]
-    y = np.array([rec.data[c.name] for c in d.channels])
-    nperseg = x.size if d.nperseg == "all" else d.nperseg
-    noverlap = None if nperseg is None else int(d.overlap * nperseg)
-    est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg, noverlap=noverlap,
-                       window=d.window, source=path)
-    return est.f, est.H, est.coherence, rec
+        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex", db_reference=d.db_reference)
+        return f, H * d.unit_factor, None, None, 1, None
+    paths = [path] if path else list(d.records or (d.file,))
+    est, rec, reports = _read_records(cfg, paths)
+    return est.f, est.H, est.coherence, rec, est.n_averages, _merge_quality(reports)
+
+
+def _merge_quality(reports):
+    """One report over all records (file named in each glitch's channel when several)."""
+    from .quality import QualityReport
+
+    if len(reports) == 1:
+        return reports[0][1]
+    glitches = []
+    for path, rep in reports:
+        tag = os.path.basename(path)
+        glitches += [type(g)(f"{tag}:{g.channel}", g.kind, g.start, g.stop, g.time_s)
+                     for g in rep.glitches]
+    return QualityReport(tuple(glitches), sum(r.n_samples for _, r in reports), reports[0][1].removed,
+                         reports[0][1].settings)
 
 
 def _detection_form(f, H, channels, excitation):
@@ -265,7 +352,7 @@ def assemble(cfg, channels=None, data_file=None):
     n = model.n
     damping = _damping(cfg, model)
     params = _parameters(cfg, model, damping)
-    f, H, coherence, records = _read_data(cfg, data_file)
+    f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
     force_dof = None
     if ex.type == "force":
@@ -291,9 +378,13 @@ def assemble(cfg, channels=None, data_file=None):
                              "motion", c.output)
         chans.append(Channel(c.name, dof, c.output))
         rows.append(c.column if cfg.data.type == "frf" else i)
+    gains = np.array([c.scale * c.sign for c in cfg.data.channels
+                      if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
     H = H[rows]
+    if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
+        H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
@@ -308,7 +399,7 @@ def assemble(cfg, channels=None, data_file=None):
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records)
+                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase)
 
 
 def build_problem(case):

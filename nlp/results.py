@@ -69,7 +69,7 @@ def summarize(case, problem, search):
     for i, p in enumerate(params.params):
         scale = p.nominal if p.nominal is not None else 1.0
         rows.append({
-            "name": p.name, "group": p.group, "unit": UNITS[p.group],
+            "name": p.name, "group": p.group, "unit": p.unit or UNITS[p.group],
             "initial": _physical(p, theta0[i]), "updated": _physical(p, theta[i]),
             "relative_change": float(theta[i]) if p.nominal is not None else None,
             "lower": _physical(p, p.lower), "upper": _physical(p, p.upper),
@@ -112,9 +112,12 @@ def summarize(case, problem, search):
                    "starts_requested": search.n_requested, "starts_finished": len(search.results),
                    "interrupted": search.interrupted, "seconds": search.seconds,
                    "starts_within_1pct_of_best": len(near),
-                   "starts": [{"index": i, "f": r.f, "success": r.success, "status": r.status,
+                   "starts_resumed": search.resumed,
+                   # success: converged (only those compete); f is null for a failed solve
+                   "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
+                               "success": r.success, "status": r.status,
                                "iterations": r.iterations, "seconds": r.seconds}
-                              for i, r in enumerate(search.results)]},
+                              for i, r in zip(search.indices, search.results)]},
     }
 
 
