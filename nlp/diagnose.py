@@ -275,32 +275,27 @@ def _refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
             "at_bound": at_bound, "z": res.z, "problem": pr}
 
 
-_JOBS = None  # refit arguments, set in the parent before forking the workers
-
-
-def _refit_job(i):
-    r = _refit(*_JOBS[i])
-    r["problem"] = None  # CasADi functions do not pickle; the parent rebuilds the one it keeps
-    return i, r
+def _refit_one(jobs, i):
+    """One refit in a worker: the result without its NLP (CasADi functions do not
+    pickle; the parent rebuilds the one it keeps)."""
+    r = _refit(*jobs[i])
+    r["problem"] = None
+    return r
 
 
 def _refit_all(jobs, workers):
-    """Refit independent candidates, in worker processes when workers > 1.
+    """Refit independent candidates on the executor interface (nlp/executors): forked
+    local workers when workers > 1, which inherit the jobs without pickling them.
 
     The results do not depend on the number of workers: each refit is
     deterministic and they are returned in the order of the jobs.
     """
-    global _JOBS
+    from .executors import Setup, make_executor
     workers = max(1, min(int(workers or 1), len(jobs)))
     if workers == 1:
         return [_refit(*j) for j in jobs]
-    import multiprocessing as mp
-    _JOBS = jobs
-    try:
-        with mp.get_context("fork").Pool(workers) as pool:
-            out = dict(pool.imap_unordered(_refit_job, range(len(jobs))))
-    finally:
-        _JOBS = None
+    with make_executor("local", workers=workers) as ex:
+        out = dict(ex.map(Setup(value=jobs), _refit_one, [(i, i) for i in range(len(jobs))]))
     return [out[i] for i in range(len(jobs))]
 
 
