@@ -59,7 +59,7 @@ class ParameterConfig:
     bounds: dict = field(default_factory=dict)    # name -> [lo, hi] [kg, N/m] or {multiplier: [lo, hi]}
     ties: dict = field(default_factory=dict)      # (key: tie) label -> list of names sharing one variable
     total_mass: float = None                      # known total mass, anchors the scale [kg]
-    prior: dict = field(default_factory=dict)     # masses|stiffnesses|name -> relative 1-sigma [-]
+    prior: dict = field(default_factory=dict)     # diagnose: {masses: s, stiffnesses: s, <name>: s}, relative 1-sigma of the nominal value [-]
 
 
 @dataclass(frozen=True)
