@@ -41,6 +41,7 @@ def _umask():
 
 
 def write_json(path, obj):
+    """Write ``obj`` as indented JSON atomically (numpy arrays and scalars converted)."""
     write_atomic(path, json.dumps(obj, indent=2, default=_jsonable) + "\n")
 
 
