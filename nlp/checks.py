@@ -44,6 +44,7 @@ def check_model_matrices(file, M0, K0, M_infl, K_infl):
 
 
 def check_free_parameters(case_file, params):
+    """At least one decision variable: a case with every parameter fixed has nothing to update."""
     if params.n_z == 0:
         raise InputError(case_file, "parameters.fixed", "at least one free parameter to update",
                          "every parameter fixed")

@@ -45,10 +45,12 @@ def staging_path(out):
 
 
 def lock_path(out):
+    """The lock file of ``out``: ``out + '.lock'``, beside it."""
     return os.path.abspath(out) + ".lock"
 
 
 def prev_path(out):
+    """Where the previous result of ``out`` is kept: ``out + '.prev'``."""
     return os.path.abspath(out) + ".prev"
 
 

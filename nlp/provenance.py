@@ -18,6 +18,7 @@ __all__ = ["provenance", "package_version", "git_commit", "sha256_file", "case_f
 
 
 def package_version():
+    """The installed frf-nlp version (the package's own when not installed)."""
     try:
         from importlib.metadata import PackageNotFoundError, version
         return version("frf-nlp")
@@ -44,6 +45,7 @@ def git_commit(path=None):
 
 
 def sha256_file(path):
+    """Hex sha256 of a file's bytes, read in 1 MiB blocks."""
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
