@@ -32,7 +32,8 @@ passive chain-like structure has, so they hold whatever the parameter values:
 ``setup_errors`` (each a dict with ``kind`` and ``message``), ``warnings``,
 and the per-check numbers. Functions in ``RECORD_CHECKS`` (for example a
 spike/dropout detector for time histories) are called with the case and
-return extra warnings or set-up errors in the same form.
+return extra warnings or set-up errors in the same form; the spikes and dropouts
+that nlp/quality.py found when the records were read are reported as warnings.
 """
 
 import numpy as np
@@ -70,6 +71,9 @@ def _band(case):
 
 
 def _segments(case):
+    """Welch segments averaged in the estimate (1: one segment or an FRF file)."""
+    if getattr(case, "n_averages", None) is not None:
+        return int(case.n_averages)
     d = case.config.data
     if case.records is None or d.nperseg == "all":
         return 1
@@ -227,7 +231,8 @@ def screen(case):
                                           f"opposite sign: at the first resonance "
                                           f"({case.f[peaks[0]]:.3g} Hz), where every floor moves in "
                                           "phase, its phase is offset by pi from the other channels'. "
-                                          "Check the sensor's orientation and wiring."})
+                                          "Check the sensor's orientation and wiring (or give the "
+                                          "channel sign: -1)."})
             Q[flipped] = -Q[flipped]
         swap = None
         if peaks.size >= 2 and len(set(floors)) >= 3:
@@ -272,6 +277,7 @@ def screen(case):
         warnings.append({"kind": "no_resonance", "message": "no resonance stands out in the band: "
                                                              "the set-up checks were skipped"})
     _coherence(case, peaks, names, warnings, checks)
+    _record_quality(case, warnings, checks)
     for check in RECORD_CHECKS:
         for item in check(case):
             (errors if item.get("severity") == "error" else warnings).append(item)
@@ -307,6 +313,23 @@ def _coherence(case, peaks, names, warnings, checks):
                              "dB (median) at the resonances: input noise or force drop-out; H1 "
                              "underestimates the peaks"})
 
+
+
+def _record_quality(case, warnings, checks):
+    """Spikes and dropouts found in the records when they were read (nlp/quality.py)."""
+    rep = getattr(case, "quality", None)
+    if rep is None:
+        return
+    counts = rep.counts()
+    checks["record_quality"] = counts
+    for ch, c in counts.items():
+        if c["spikes"] or c["dropouts"]:
+            warnings.append({"kind": "record_quality", "channel": ch,
+                             "message": f"records, channel {ch}: {c['spikes']} spike(s) and "
+                                        f"{c['dropouts']} dropout(s), {100 * c['fraction_flagged']:.2g} % "
+                                        "of the samples" + (" (repaired before estimating the FRFs)"
+                                                            if rep.removed else
+                                                            "; data.screen.remove: true repairs them")})
 
 def setup_error_result(report):
     """The diagnosis of a case whose data contradict its set-up: no physics is

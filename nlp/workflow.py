@@ -21,7 +21,7 @@ from .frf import channel_frfs, modal_parameters
 from .freqsel import plot_selection
 from .metrics import fdac, fdac_overall, frac
 from .peakpick import compare_modes
-from .plots import plot_frf_overlays
+from .plots import frf_quantity, plot_frf_overlays
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
 from .executors import Setup
@@ -106,7 +106,8 @@ def _log_quality(q, log):
     if not q["channels"]:
         log("records screened: no spikes or dropouts")
     for ch, c in q["channels"].items():
-        log(f"records: {ch}: {c['spikes']} spikes, {c['dropouts']} dropouts "
+        name = ch.replace("__input__", "input")
+        log(f"records: {name}: {c['spikes']} spikes, {c['dropouts']} dropouts "
             f"({100 * c['fraction_flagged']:.2g} % of samples)"
             + (", replaced by interpolation" if q["removed"] else
                " (data.screen.remove: true replaces them by interpolation)"))
@@ -151,6 +152,10 @@ def run(cfg, out, log=print, resume=False):
                "model": {"M": M, "K": K, "C": C, "natural_frequencies_hz": fn,
                          "damping_ratios": zeta},
                "fdac": {}, "fdac_overall": {}, "frac": {}, "modes": {}}
+    summary["channels"] = [
+        dict(zip(("name", "quantity", "unit", "dof"),
+                 (ch.name, *frf_quantity(ch.output, case.target.excitation), ch.dof + 1)))
+        for case, _ in results.values() for ch in case.channels]
     for label, (case, _) in results.items():
         per, overall, fr = _fdac_of(model, case)
         summary["fdac"].update(per)

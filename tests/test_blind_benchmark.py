@@ -61,3 +61,16 @@ def test_contact_spring_engages_beyond_the_gap_only():
                           gap=0.3 * np.max(np.abs(q0[0])))[0]
     assert np.allclose(q1, q0, atol=1e-9)                  # never touches: linear
     assert np.max(np.abs(q2[0])) < 0.9 * np.max(np.abs(q0[0]))   # the stop limits the drift
+
+
+def test_case_list_covers_every_family_at_five_sizes_and_has_60_cases():
+    specs = mb.specs(np.random.default_rng(0))
+    assert len(specs) >= 60
+    single = [s["effects"][0] for s in specs if len(s["effects"]) == 1 and not s.get("route")]
+    for fam in mb.FAMILIES:
+        assert sorted(sz for f, sz in single if f == fam) == sorted(mb.SIZES[fam])
+    assert sum(len(s["effects"]) == 2 for s in specs) >= 5
+    assert sum(not s["effects"] and not s.get("ordinary") for s in specs) >= 5   # null
+    assert sum(bool(s.get("ordinary")) for s in specs) >= 5
+    assert {s.get("route") for s in specs} >= {None, "frf_file"}
+    assert {s["signal"] for s in specs} == {"chirp", "random"}
