@@ -192,7 +192,9 @@ def _parameters(cfg, model, damping):
         params.append(Parameter(name, "damping", float(init), float(lo), float(hi), fixed=fixed,
                                 scale=float(s)))
     known = {p.name for p in params}
-    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds)):
+    prior_names = {k for k in pc.prior if k not in ("masses", "stiffnesses")}
+    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds),
+                          ("prior", prior_names)):
         for k in keys:
             if k not in known:
                 raise InputError(path, f"parameters.{section}.{k}",

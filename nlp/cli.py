@@ -119,6 +119,8 @@ def _parser():
 
 
 def main(argv=None):
+    """Run the ``frf-nlp`` command with ``argv`` (default ``sys.argv[1:]``); returns the
+    exit status (0, 2, 3 or 130: see ``frf-nlp --help``)."""
     args = _parser().parse_args(argv)
     try:
         return {"run": _run, "diagnose": _diagnose, "batch": _batch,

@@ -27,9 +27,9 @@ MODEL_TYPES = ("shear_frame", "matrices", "opensees")
 
 @dataclass(frozen=True)
 class ModelConfig:
-    type: str                      # "shear_frame" | "matrices" | "opensees"
-    masses: tuple = ()             # shear_frame: kg per floor
-    stiffnesses: tuple = ()        # shear_frame: N/m per story
+    type: str = "shear_frame"      # "shear_frame" | "matrices" | "opensees"
+    masses: tuple = ()             # shear_frame (required): floor masses [kg], ground up
+    stiffnesses: tuple = ()        # shear_frame (required): story stiffnesses [N/m]
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
     script: str = None             # opensees: the OpenSeesPy model script
     M: object = None               # matrices: path or {file, key} of M0 (.mtx, .npz, .mat)
@@ -37,7 +37,7 @@ class ModelConfig:
     dof_map: str = None            # matrices: (node, dof) of each row (CSV or array)
     constrained: tuple = ()        # matrices: (node, dof) rows to remove
     stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
-    mass_groups: dict = field(default_factory=dict)
+    mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
 
 
@@ -51,32 +51,33 @@ class Multiplier:
 
 @dataclass(frozen=True)
 class ParameterConfig:
-    stiffness_bounds: tuple = (-0.5, 1.0)   # relative change
-    mass_bounds: tuple = (-0.5, 1.0)
+    stiffness_bounds: tuple = (-0.5, 1.0)   # [lo, hi] relative change of every stiffness [-]
+    mass_bounds: tuple = (-0.5, 1.0)        # [lo, hi] relative change of every mass [-]
     # Values in physical units (kg, N/m; damping in its model's units) or Multiplier
-    fixed: dict = field(default_factory=dict)     # name -> value
-    initial: dict = field(default_factory=dict)   # name -> value
-    bounds: dict = field(default_factory=dict)    # name -> (lo, hi)
-    ties: dict = field(default_factory=dict)      # label -> [names]
-    total_mass: float = None
+    fixed: dict = field(default_factory=dict)     # name -> value [kg, N/m] or {multiplier: x}
+    initial: dict = field(default_factory=dict)   # name -> start value [kg, N/m] or {multiplier: x}
+    bounds: dict = field(default_factory=dict)    # name -> [lo, hi] [kg, N/m] or {multiplier: [lo, hi]}
+    ties: dict = field(default_factory=dict)      # (key: tie) label -> list of names sharing one variable
+    total_mass: float = None                      # known total mass, anchors the scale [kg]
+    prior: dict = field(default_factory=dict)     # diagnose: {masses: s, stiffnesses: s, <name>: s}, relative 1-sigma of the nominal value [-]
 
 
 @dataclass(frozen=True)
 class DampingConfig:
     model: str = "general"                 # general | rayleigh | modal
-    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n
-    a0: float = None
-    a1: float = None
-    matrix: tuple = None                   # initial C [N s/m]
-    modal_zeta: tuple = None               # modal: initial ratios
-    diag_factor: float = 30.0
-    offdiag: float = 3.0
+    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n [-]
+    a0: float = None                       # initial Rayleigh mass coefficient [1/s] (with a1)
+    a1: float = None                       # initial Rayleigh stiffness coefficient [s] (with a0)
+    matrix: tuple = None                   # initial C, list of rows [N s/m]
+    modal_zeta: tuple = None               # modal: initial damping ratio of each mode [-]
+    diag_factor: float = 30.0              # general: bounds of L[i,i] as a factor of the start [-]
+    offdiag: float = 3.0                   # general: bound of |L[i,j]| relative to the diagonal [-]
 
 
 @dataclass(frozen=True)
 class ExcitationConfig:
     type: str = "ground"                   # ground | force
-    floor: int = None                      # force: 1-based
+    floor: int = None                      # force: floor of the shaker, 1 = lowest
     node: int = None                       # force at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
     direction: object = None               # ground: DOF of the table motion (default ux)
@@ -84,13 +85,13 @@ class ExcitationConfig:
 
 @dataclass(frozen=True)
 class ChannelConfig:
-    name: str
-    floor: int                             # 1-based (None when node and dof are given)
-    output: str                            # derived from quantity for time histories
-    column: object                         # FRF file: 0-based index; records: column name
-    weight: float = 1.0
+    name: str                              # channel name (default ch1, ch2, ...)
+    floor: int                             # (required unless node and dof) 1 = lowest floor
+    output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
+    column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
+    weight: float = 1.0                    # weight of the channel's residuals [-]
     quantity: str = None                   # time histories: acceleration | displacement | velocity
-    unit: str = None                       # time histories: unit in the file
+    unit: str = None                       # time histories: unit in the file (g, mm, m/s^2, ...)
     node: int = None                       # sensor at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
     scale: float = 1.0                     # calibration: file value x scale = value in the unit
@@ -106,16 +107,16 @@ class ScreenConfig:
 
 @dataclass(frozen=True)
 class DataConfig:
-    file: str                              # absolute path
+    file: str                              # (required unless records) data file, relative to the case
     format: str = "auto"                   # auto | npz | complex | magphase | db | magnitude | db_magnitude
-    unit_factor: float = 1.0               # multiplies the file's FRF to SI
-    channels: tuple = ()
+    unit_factor: float = 1.0               # multiplies the file's FRF to SI [-]
+    channels: tuple = ()                   # (required) list of channels (data.channels[] below)
     type: str = "frf"                      # frf | time_histories
-    input: dict = None                     # time histories: {column, quantity, unit, floor}
-    estimator: str = "H1"                  # H1 | H2 | Hv
-    nperseg: object = None                 # samples per segment, or "all"
-    overlap: float = 0.5
-    window: str = "hann"
+    input: dict = None                     # time histories (required): {column, quantity, unit, floor, scale, sign, from: {column, mass, unit}}
+    estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
+    nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
+    overlap: float = 0.5                   # Welch segment overlap, fraction [-]
+    window: str = "hann"                   # Welch window (scipy.signal name)
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -136,43 +137,43 @@ class DataConfig:
 @dataclass(frozen=True)
 class FrequencyConfig:
     method: str = "half_power"             # half_power | bands | points | all
-    k: float = 1.0
-    bands: tuple = ()
-    points: tuple = ()
-    fmin: float = None
-    fmax: float = None
-    n_peaks: int = None
-    min_points_per_peak: int = 5
-    min_coherence: float = None
+    k: float = 1.0                         # half_power: window half-width in half-power bandwidths [-]
+    bands: tuple = ()                      # bands: list of [f_lo, f_hi] [Hz]
+    points: tuple = ()                     # points: list of frequencies [Hz]
+    fmin: float = None                     # lowest frequency used [Hz]
+    fmax: float = None                     # highest frequency used [Hz]
+    n_peaks: int = None                    # half_power: number of peaks (default: all found)
+    min_points_per_peak: int = 5           # half_power: widen a window to at least this many points
+    min_coherence: float = None            # drop points below this coherence (records) [-]
 
 
 @dataclass(frozen=True)
 class ObjectiveConfig:
-    residual: str = "log_magnitude"
+    residual: str = "log_magnitude"        # log_magnitude | magnitude | complex (needs phase)
 
 
 @dataclass(frozen=True)
 class SolverSection:
-    name: str = "ipopt"
-    options: dict = field(default_factory=dict)
-    compile: bool = True
+    name: str = "ipopt"                    # ipopt | sqpmethod
+    options: dict = field(default_factory=dict)  # passed to CasADi's nlpsol
+    compile: bool = True                   # compile the residual and Jacobian to C (cached)
 
 
 @dataclass(frozen=True)
 class SearchSection:
-    starts: int = 20
-    trial_factor: int = 10
-    seed: int = 0
-    workers: int = 1
+    starts: int = 20                       # local solves of the scatter search
+    trial_factor: int = 10                 # trial points per start
+    seed: int = 0                          # seed of the trial points
+    workers: int = 1                       # worker processes
     executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
     scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
 
 
 @dataclass(frozen=True)
 class CaseConfig:
-    path: str
-    name: str
-    description: str
+    path: str                                     # (internal) absolute path of the case file
+    name: str                                     # case name (default: the case folder's name)
+    description: str                              # free text
     model: ModelConfig
     parameters: ParameterConfig
     damping: DampingConfig
@@ -183,7 +184,7 @@ class CaseConfig:
     solver: SolverSection
     search: SearchSection
     updates: dict = field(default_factory=dict)   # name -> channel names, averaged (Table 1)
-    closeup_seconds: float = 3.0
+    closeup_seconds: float = 3.0                  # (key: verification.closeup_seconds) close-up length [s]
 
 
 class _Reader:
@@ -387,7 +388,7 @@ def _opensees_model(rd, d, base):
 
 def _parameters(rd, d):
     rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
-                                    "bounds", "tie", "total_mass"})
+                                    "bounds", "tie", "total_mass", "prior"})
     out = {}
     for key in ("stiffness_bounds", "mass_bounds"):
         if key in d:
@@ -410,6 +411,9 @@ def _parameters(rd, d):
         ties[str(label)] = tuple(names)
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    pm = rd.mapping(d, "parameters.prior")
+    out["prior"] = {str(k): rd.number(pm, k, f"parameters.prior.{k}", required=True, positive=True)
+                    for k in pm}
     return ParameterConfig(**out)
 
 

@@ -33,6 +33,7 @@ def write_atomic(path, data, mode="w"):
 
 
 def write_json(path, obj):
+    """Write ``obj`` as indented JSON atomically (numpy arrays and scalars converted)."""
     write_atomic(path, json.dumps(obj, indent=2, default=_jsonable) + "\n")
 
 
