@@ -7,6 +7,9 @@ import numpy as np
 
 from .damping import (DashpotDamping, GeneralDamping, ModalDamping, ModalGeneralDamping,
                       RayleighDamping, band_modes, rayleigh_from_ratios)
+from .checks import (check_coherence, check_data_points, check_free_parameters,
+                     check_frf_alive, check_model_matrices, check_points_inside,
+                     check_record_alive, check_start_residuals, check_total_mass)
 from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
@@ -54,7 +57,13 @@ def _load_model(cfg):
     if m.type == "shear_frame":
         return shear_frame(m.masses, m.stiffnesses)
     model = load_model(m, cfg.path)
-    return model.dense() if model.n <= DENSE_MAX else model
+    if model.n > DENSE_MAX:
+        return model
+    model = model.dense()
+    # symmetric M0, K0 and groups, M0 PD, K0 PSD: named by the model file
+    src = m.file or m.script or (m.K.get("file") if isinstance(m.K, dict) else m.K) or cfg.path
+    check_model_matrices(src, model.M0, model.K0, model.M_infl, model.K_infl)
+    return model
 
 
 def _groups_cover(model):
@@ -225,7 +234,9 @@ def _parameters(cfg, model, damping):
         params.append(Parameter(name, "damping", float(init), float(lo), float(hi), fixed=fixed,
                                 scale=float(s)))
     known = {p.name for p in params}
-    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds)):
+    prior_names = {k for k in pc.prior if k not in ("masses", "stiffnesses")}
+    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds),
+                          ("prior", prior_names)):
         for k in keys:
             if k not in known:
                 raise InputError(path, f"parameters.{section}.{k}",
@@ -265,8 +276,16 @@ def _read_records(cfg, paths):
     spec = _record_spec(d)
     xs, ys, reports, first = [], [], [], None
     for path in paths:
-        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
-                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        try:
+            rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                      time_column=d.time_column, skip_rows=d.skip_rows)
+        except InputError as exc:  # a unit or column named in the case file: say which key
+            raise _case_key_error(cfg, exc) from None
+        check_record_alive(path, d.input["column"], rec.data["__input__"],
+                           f"data.input.column of {cfg.path}")
+        for i, c in enumerate(d.channels):
+            check_record_alive(path, c.column, rec.data[c.name],
+                               f"data.channels[{i}] of {cfg.path}")
         if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
             raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
                              rec.fs)
@@ -287,8 +306,16 @@ def _read_records(cfg, paths):
         from .estimate import _default_nperseg
         nperseg = _default_nperseg(n)
         noverlap = int(d.overlap * nperseg)
-    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
-                       noverlap=noverlap, window=d.window, source=paths[0])
+    try:
+        est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                           noverlap=noverlap, window=d.window, source=paths[0])
+    except InputError as exc:  # segment settings come from the case file: name its key
+        if exc.key not in ("nperseg", "noverlap"):
+            raise
+        raise InputError(cfg.path, "data.nperseg" if exc.key == "nperseg" else "data.overlap",
+                         f"{exc.expected} (the records have {n} samples)", exc.got) from None
+    check_coherence(cfg, est.f, est.coherence, [c.column for c in d.channels],
+                    [f"data.channels[{i}]" for i in range(len(d.channels))], est.n_averages)
     return est, first, reports
 
 
@@ -322,6 +349,20 @@ def _merge_quality(reports):
                          reports[0][1].settings)
 
 
+def _case_key_error(cfg, exc):
+    """A records-file error about a channel spec, renamed to the case file's key."""
+    key = exc.key
+    if key.startswith("channels."):
+        _, name, *rest = key.split(".")
+        field = rest[0] if rest else "column"
+        if name == "__input__":
+            return InputError(cfg.path, f"data.input.{field}", exc.expected, exc.got)
+        for i, c in enumerate(cfg.data.channels):
+            if c.name == name:
+                return InputError(cfg.path, f"data.channels[{i}].{field}", exc.expected, exc.got)
+    return exc
+
+
 def _detection_form(f, H, channels, excitation):
     """Each channel as an accelerance, absolute for ground input (-w^2 H + 1 for a
     receptance): every mode peaks there, while the 1/w^2 fall of a receptance
@@ -346,13 +387,31 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
             mask &= f <= fc.fmax
         idx = np.nonzero(mask)[0]
     elif fc.method == "points":
+        check_points_inside(cfg, f)
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
+        check_points_inside(cfg, f)
         try:
             idx = _half_power(cfg, f, H, channels, excitation, coherence)
         except InputError as exc:  # freqsel names its argument; say which case key it is
-            raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
+            raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
+
+
+_FREQ_KEYS = {"k", "bands", "points", "fmin", "fmax", "n_peaks", "min_points_per_peak",
+              "min_coherence"}
+
+
+def _frequency_error(cfg, f, exc):
+    """A freqsel error named by a key that exists in the case file."""
+    if exc.key in _FREQ_KEYS:
+        return InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got)
+    if exc.key == "prominence_db":  # no resonance peak: the data, not a setting, is the cause
+        return InputError(cfg.path, "frequencies.method", "a method the data allow: half_power "
+                          f"needs a resonance peak, and {cfg.data.file} shows none in "
+                          f"{f[0]:g}-{f[-1]:g} Hz (check its record length and input, or use "
+                          "bands or all)", cfg.frequencies.method)
+    return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
 
 
 def _half_power(cfg, f, H, channels, excitation, coherence):
@@ -411,14 +470,20 @@ def assemble(cfg, channels=None, data_file=None):
                       if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
+    if cfg.data.type == "frf":
+        check_frf_alive(cfg, H, rows)
     H = H[rows]
     if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
         H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
+    # damping after the selection: modal-basis damping takes the band's modes
     damping = _damping(cfg, model, float(f[idx].max()))
     params = _parameters(cfg, model, damping)
+    check_free_parameters(cfg.path, params)
+    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
+    check_data_points(cfg, params, len(channels), idx.size, f)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type, force_dof=force_dof,
@@ -445,10 +510,13 @@ def build_problem(case):
                                   total_mass=cfg.parameters.total_mass, frf_backend=backend,
                                   basis=basis)
         problem.reduced_info = info
-        return problem
-    except RuntimeError as exc:  # CasADi rejects an option: a case-file mistake
+    except RuntimeError as exc:
+        if "option" not in str(exc).lower():  # not the user's options: a real failure
+            raise
         raise InputError(cfg.path, "solver.options", f"options that CasADi's {cfg.solver.name} "
                          f"accepts ({_casadi_reason(str(exc))})") from None
+    check_start_residuals(case, problem)
+    return problem
 
 
 def _reduced_basis(case):

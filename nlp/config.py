@@ -7,6 +7,7 @@ the key and what is expected. See the README's case-file reference.
 from dataclasses import dataclass, field, replace
 import math
 import os
+import re
 
 import yaml
 
@@ -61,6 +62,7 @@ class ParameterConfig:
     bounds: dict = field(default_factory=dict)    # name -> [lo, hi] [kg, N/m] or {multiplier: [lo, hi]}
     ties: dict = field(default_factory=dict)      # (key: tie) label -> list of names sharing one variable
     total_mass: float = None                      # known total mass, anchors the scale [kg]
+    prior: dict = field(default_factory=dict)     # diagnose: {masses: s, stiffnesses: s, <name>: s}, relative 1-sigma of the nominal value [-]
 
 
 @dataclass(frozen=True)
@@ -189,6 +191,21 @@ class CaseConfig:
     closeup_seconds: float = 3.0                  # (key: verification.closeup_seconds) close-up length [s]
 
 
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads YAML 1.2 floats too: ``2.552e6`` and ``1e-3`` are numbers
+    (YAML 1.1 wants a dot and a signed exponent, and would read them as text)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
 class _Reader:
     """Typed access to a YAML mapping with errors that name file and key."""
 
@@ -269,8 +286,14 @@ def load_case(path, overrides=None):
     if not os.path.isfile(path):
         raise InputError(path, "<file>", "an existing case YAML file")
     try:
-        with open(path) as fh:
-            raw = yaml.safe_load(fh)
+        with open(path, "rb") as fh:
+            text = fh.read()
+        if b"\0" in text:
+            raise InputError(path, "<file>", "a YAML text file", "binary data")
+        raw = yaml.load(text.decode("utf-8"), Loader=_Loader)
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "<file>", "a YAML text file in UTF-8",
+                         f"undecodable byte at position {exc.start}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
     rd = _Reader(path)
@@ -397,7 +420,7 @@ def _opensees_model(rd, d, base):
 
 def _parameters(rd, d):
     rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
-                                    "bounds", "tie", "total_mass"})
+                                    "bounds", "tie", "total_mass", "prior"})
     out = {}
     for key in ("stiffness_bounds", "mass_bounds"):
         if key in d:
@@ -420,6 +443,9 @@ def _parameters(rd, d):
         ties[str(label)] = tuple(names)
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    pm = rd.mapping(d, "parameters.prior")
+    out["prior"] = {str(k): rd.number(pm, k, f"parameters.prior.{k}", required=True, positive=True)
+                    for k in pm}
     return ParameterConfig(**out)
 
 
