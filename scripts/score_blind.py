@@ -143,7 +143,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bench", default="blind")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per case")
-    ap.add_argument("--only", help="comma-separated case-name prefixes")
+    ap.add_argument("--only", help="comma-separated case-name prefixes, run in this order")
     ap.add_argument("--summary-only", action="store_true", help="print the scores already in the file")
     a = ap.parse_args()
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -157,8 +157,8 @@ def main():
                     r = json.loads(ln)
                     rows[r["case"]] = r
     names = sorted(d for d in os.listdir(a.bench) if os.path.isfile(os.path.join(a.bench, d, "case.yaml")))
-    if a.only:
-        names = [d for d in names if any(d.startswith(p) for p in a.only.split(","))]
+    if a.only:   # in the order given
+        names = [d for p in a.only.split(",") for d in names if d.startswith(p)]
     for name in names:
         if name in rows:
             print(_line(rows[name]), flush=True)
