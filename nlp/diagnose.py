@@ -31,10 +31,12 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
+from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                       extend_parameters, references)
 from .problem import SolverConfig, Target, UpdatingProblem
+from .provenance import provenance
 from .search import SearchConfig, scatter_search
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
                                  effect_terms, quasi_covariance, scaled_delta_bic, significance,
@@ -534,6 +536,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
+    check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
     b_res = scatter_search(base, SearchConfig(starts=max(cfg.search.starts, 20),
                                               seed=cfg.search.seed), progress=None).best
@@ -970,7 +973,7 @@ def _verdict(cfg, case, out, log, ctx):
               "residual_map": {"before": ctx["cells"], "after": cells_after},
               "whole_band": whole,
               "extra_modes": whole["extra_modes"] if whole else [],
-              "suggested_measurements": suggestions}
+              "suggested_measurements": suggestions, "provenance": provenance(cfg)}
     if ctx.get("screening") is not None:
         result["screening"] = ctx["screening"]
     os.makedirs(out, exist_ok=True)
