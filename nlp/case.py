@@ -5,13 +5,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .damping import (DashpotDamping, GeneralDamping, ModalDamping, ModalGeneralDamping,
+                      RayleighDamping, band_modes, rayleigh_from_ratios)
 from .checks import (check_coherence, check_data_points, check_free_parameters,
                      check_frf_alive, check_model_matrices, check_points_inside,
                      check_record_alive, check_start_residuals, check_total_mass)
 from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
+from .frf_backends import choose as choose_backend
+from .frf_backends import reduced
+from .frf_backends.sparse import SparseFRF
+from .frf_backends.system import LinearSystem
 from .identify import SCALE_EXPLANATION, scale_null_space
 from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
@@ -114,13 +119,25 @@ def _ground_r(cfg, model):
     return ground_influence(model.dofs, d)
 
 
-def _damping(cfg, model):
+def _damping(cfg, model, f_max=None):
     d = cfg.damping
     M0, K0 = model.M0, model.K0
     if d.a0 is not None:
         a0, a1 = d.a0, d.a1
+    elif d.model in ("modal_general", "dashpots") or model.n > 400:
+        a0, a1 = _rayleigh_band(cfg, model, f_max)
     else:
         a0, a1 = rayleigh_from_ratios(M0, K0, d.zeta)
+    if d.model == "modal_general":
+        modes = d.modes or _band_mode_numbers(model, f_max)
+        z0 = d.modal_zeta or (d.zeta,) * len(modes)
+        if len(z0) != len(modes):
+            raise InputError(cfg.path, "damping.modal_zeta", f"{len(modes)} ratios, one per mode "
+                             f"in damping.modes {list(modes)}", list(z0))
+        return ModalGeneralDamping.from_model(M0, K0, modes, z0, a0, a1)
+    if d.model == "dashpots":
+        return DashpotDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3,
+                              K_groups=tuple(model.K_infl), group_names=tuple(model.alpha_names))
     if d.model == "rayleigh":
         return RayleighDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3)
     if d.model == "modal":
@@ -131,6 +148,22 @@ def _damping(cfg, model):
         raise InputError(cfg.path, "damping.matrix" if d.matrix is not None else "damping",
                          "a symmetric positive definite initial damping matrix")
     return GeneralDamping(C0=C0)
+
+
+def _band_mode_numbers(model, f_max):
+    """1-based numbers of the nominal modes below 1.1 f_max (at least one)."""
+    omega, _ = band_modes(model.M0, model.K0, min(model.n, 30))
+    k = int(np.sum(omega / (2 * np.pi) <= 1.1 * f_max)) if f_max else omega.size
+    return tuple(range(1, max(k, 1) + 1))
+
+
+def _rayleigh_band(cfg, model, f_max):
+    """Rayleigh (a0, a1) with ratio damping.zeta at the first and the last band mode."""
+    modes = _band_mode_numbers(model, f_max)
+    omega, _ = band_modes(model.M0, model.K0, max(modes[-1], 2))
+    wi, wj = omega[0], omega[max(modes[-1], 2) - 1]
+    z = cfg.damping.zeta
+    return 2 * z * wi * wj / (wi + wj), 2 * z / (wi + wj)
 
 
 _UNIT = {"stiffness": "N/m", "mass": "kg"}
@@ -183,7 +216,7 @@ def _parameters(cfg, model, damping):
             params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom),
                                     unit=_UNIT[group] if physical else "x nominal"))
     d = cfg.damping
-    if isinstance(damping, GeneralDamping):
+    if isinstance(damping, (GeneralDamping, ModalGeneralDamping)):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
     else:
         lo_d, hi_d = damping.default_bounds()
@@ -407,10 +440,6 @@ def assemble(cfg, channels=None, data_file=None):
     """
     model = _load_model(cfg)
     n = model.n
-    damping = _damping(cfg, model)
-    params = _parameters(cfg, model, damping)
-    check_free_parameters(cfg.path, params)
-    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
     f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
     force_dof = None
@@ -449,6 +478,11 @@ def assemble(cfg, channels=None, data_file=None):
     if coherence is not None:
         coherence = coherence[rows]
     idx = _select(cfg, f, H, channels, ex.type, coherence)
+    # damping after the selection: modal-basis damping takes the band's modes
+    damping = _damping(cfg, model, float(f[idx].max()))
+    params = _parameters(cfg, model, damping)
+    check_free_parameters(cfg.path, params)
+    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
     check_data_points(cfg, params, len(channels), idx.size, f)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
@@ -469,9 +503,13 @@ def build_problem(case):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
+        backend = choose_backend(cfg.model.frf_backend, case.model.n)
+        basis, info = _reduced_basis(case) if backend == "reduced" else (None, None)
         problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
                                   residual=cfg.objective.residual, solver=solver,
-                                  total_mass=cfg.parameters.total_mass)
+                                  total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                  basis=basis)
+        problem.reduced_info = info
     except RuntimeError as exc:
         if "option" not in str(exc).lower():  # not the user's options: a real failure
             raise
@@ -479,6 +517,32 @@ def build_problem(case):
                          f"accepts ({_casadi_reason(str(exc))})") from None
     check_start_residuals(case, problem)
     return problem
+
+
+def _reduced_basis(case):
+    """The reduced basis, after checking its FRF against the exact one at the initial model.
+
+    Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
+    over the case's frequencies exceeds the data noise (median over channels
+    of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
+    """
+    from .diagnose import noise_sigma  # diagnose builds on this module
+
+    tg = case.target
+    full = LinearSystem.from_model(case.model, case.damping, tg)
+    psi = reduced.basis(full, float(tg.omega.max()))
+    z0 = case.params.z0
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, tg.omega)
+    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
+    rms, worst = reduced.log_error(exact, small.frf(z0, tg.omega), tg.weight)
+    noise = float(np.median(noise_sigma(case, case.selected)))
+    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise}
+    if rms > noise:
+        raise InputError(case.config.path, "model.frf_backend",
+                         f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "
+                         f"exact FRF by {rms:.3g} (RMS of ln|H| on the case's frequencies), more "
+                         f"than the data noise {noise:.3g}", "reduced")
+    return psi, info
 
 
 def _casadi_reason(text):

@@ -4,7 +4,7 @@ Every user mistake raises one :class:`nlp.errors.InputError` naming the file,
 the key and what is expected. See the README's case-file reference.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
 import re
@@ -21,6 +21,7 @@ __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "Damping
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
+FRF_BACKENDS = ("auto", "dense", "sparse", "reduced")   # nlp.frf_backends.BACKENDS
 
 
 MODEL_TYPES = ("shear_frame", "matrices", "opensees")
@@ -40,6 +41,7 @@ class ModelConfig:
     stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
     mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
+    frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,7 @@ class ParameterConfig:
 
 @dataclass(frozen=True)
 class DampingConfig:
-    model: str = "general"                 # general | rayleigh | modal
+    model: str = "general"                 # general | rayleigh | modal | modal_general | dashpots
     zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n [-]
     a0: float = None                       # initial Rayleigh mass coefficient [1/s] (with a1)
     a1: float = None                       # initial Rayleigh stiffness coefficient [s] (with a0)
@@ -73,6 +75,7 @@ class DampingConfig:
     modal_zeta: tuple = None               # modal: initial damping ratio of each mode [-]
     diag_factor: float = 30.0              # general: bounds of L[i,i] as a factor of the start [-]
     offdiag: float = 3.0                   # general: bound of |L[i,j]| relative to the diagonal [-]
+    modes: tuple = None                    # modal_general: 1-based nominal modes (default: the band's)
 
 
 @dataclass(frozen=True)
@@ -324,8 +327,15 @@ def load_case(path, overrides=None):
 
 
 def _model(rd, d, base):
+    """The model section; ``frf_backend`` applies to every model type."""
+    backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
+    return replace(_model_kind(rd, d, base), frf_backend=backend)
+
+
+def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
-                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
+                               "frf_backend"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
@@ -459,8 +469,9 @@ def _value_or_multiplier(rd, m, k, path, pair=False):
 
 def _damping(rd, d, n):
     rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
-                                 "diag_factor", "offdiag"})
-    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+                                 "diag_factor", "offdiag", "modes"})
+    model = rd.choice(d, "model", "damping.model",
+                      ("general", "rayleigh", "modal", "modal_general", "dashpots"), "general")
     out = dict(model=model)
     out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
     out["a0"] = rd.number(d, "a0", "damping.a0")
@@ -479,8 +490,17 @@ def _damping(rd, d, n):
         if n is not None and len(mat) != n:
             raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
         out["matrix"] = mat
+    if "modes" in d:
+        modes = rd.numbers(d["modes"], "damping.modes", positive=True)
+        if any(int(k) != k for k in modes) or (n is not None and max(modes) > n) \
+                or len(set(modes)) != len(modes):
+            raise rd.err("damping.modes", f"distinct mode numbers from 1 to {n}", d["modes"])
+        out["modes"] = tuple(sorted(int(k) for k in modes))
     if "modal_zeta" in d:
-        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+        length = len(out["modes"]) if model == "modal_general" and "modes" in out else \
+            (None if model == "modal_general" else n)
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=length,
+                                       positive=True)
     out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
     out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
     if out["diag_factor"] <= 1:

@@ -42,8 +42,7 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
         f"residual {cfg.objective.residual}, solver {cfg.solver.name}")
     t0 = time.perf_counter()
     problem = build_problem(case)
-    log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s "
-        f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
+    log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s ({problem.describe()})")
     s = cfg.search
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
                                                   seed=s.seed, workers=s.workers,
