@@ -315,3 +315,30 @@ def test_damaged_cached_library_is_rebuilt(tmp_path, monkeypatch):
         fresh = str(tmp_path / f"eval{len(damage)}.so")
         shutil.copy(again, fresh)
         assert float(ca.external("rel_probe", fresh)([1.0, 2.0])) == 6.0
+
+
+@pytest.mark.slow
+def test_inverted_sensor_is_flagged_by_the_replay(tmp_path):
+    """An accelerometer mounted upside down: |H| (the fit) cannot see it, the time-domain
+    replay anti-correlates with its record, and the run says: likely a sign or unit error."""
+    import shutil
+    import yaml
+    from make_shake_table import make
+    t, cols, _ = make(seed=5)
+    cols["acc4"] = -cols["acc4"]
+    names = list(cols)
+    np.savetxt(tmp_path / "records.csv", np.column_stack([cols[n] for n in names]),
+               delimiter=",", header=",".join(names), comments="")
+    cfg = yaml.safe_load(open(os.path.join(ROOT, "cases", "four_story_shake_table", "case.yaml")))
+    cfg["data"]["channels"] = cfg["data"]["channels"][:4]  # the accelerometers, one update
+    cfg.pop("updates")
+    yaml.safe_dump(cfg, open(tmp_path / "case.yaml", "w"))
+    proc = cli_inproc("run", tmp_path / "case.yaml", "--out", tmp_path / "out", "--starts", 2,
+                      "--workers", 1)
+    assert proc.returncode == 0, proc.stderr
+    s = json.load(open(tmp_path / "out" / "summary.json"))
+    assert s["time_domain"]["a4"]["correlation"] < -0.9
+    assert all(s["time_domain"][c]["correlation"] > 0.9 for c in ("a1", "a2", "a3"))
+    assert [f["subject"] for f in s["flags"] if f["kind"] == "negative_correlation"] == ["a4"]
+    assert "WARNING (negative_correlation)" in proc.stdout
+    assert "negative_correlation" in (tmp_path / "out" / "report.html").read_text()
