@@ -120,6 +120,38 @@ def _normalised(problem, z, case, idx, sigma):
     return d.real / sigma
 
 
+class _Kept:
+    """Collects every finished start of a scatter search (the checkpoint interface)."""
+
+    def __init__(self):
+        self.results = {}
+
+    def open(self, problem, config, starts):
+        return {}
+
+    def append(self, i, res):
+        self.results[i] = res
+
+    def close(self):
+        pass
+
+
+def _search(problem, config):
+    """Scatter search; (best result, converged). When no start converged (a solver that
+    crawls along a weakly determined direction until its iteration limit), the lowest
+    objective reached is used, as every f is a true evaluation at a feasible point, and
+    converged is False (diagnosis.json says so)."""
+    from .errors import SearchFailed
+    kept = _Kept()
+    try:
+        return scatter_search(problem, config, progress=None, checkpoint=kept).best, True
+    except SearchFailed:
+        finite = [r for r in kept.results.values() if np.isfinite(r.f)]
+        if not finite:
+            raise
+        return min(finite, key=lambda r: r.f), False
+
+
 def _fit(problem, z0_list):
     best = None
     for z0 in z0_list:
@@ -341,8 +373,7 @@ def _level_fit(cfg, path, z_start=None):
     sig = noise_sigma(c, c.selected)
     tg = _target(c, c.selected, sig)
     pr = _problem(c, tg)
-    sr = scatter_search(pr, SearchConfig(starts=6, seed=cfg.search.seed), progress=None)
-    res = sr.best
+    res, _ = _search(pr, SearchConfig(starts=6, seed=cfg.search.seed))
     if z_start is not None:
         alt = pr.solve(z_start)
         if alt.f < res.f:
@@ -538,8 +569,11 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     base = _problem(case, target)
     check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
-    b_res = scatter_search(base, SearchConfig(starts=max(cfg.search.starts, 20),
-                                              seed=cfg.search.seed), progress=None).best
+    b_res, b_conv = _search(base, SearchConfig(starts=max(cfg.search.starts, 20),
+                                               seed=cfg.search.seed, workers=cfg.search.workers))
+    if not b_conv:
+        log("baseline: no start met the solver's convergence test (iteration limit); the "
+            "lowest objective reached is used")
     n_fit = base.n_used
     chi_b = 2 * b_res.f
     nu = max(n_fit - base.params.n_z, 1)
@@ -614,7 +648,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed,
            "whole": whole, "phi": phis[0] if phis else 1.0,
-           "screening": screening and screening["report"]}
+           "screening": screening and screening["report"], "baseline_converged": b_conv}
     return _verdict(cfg, case, out, log, ctx)
 
 
@@ -903,7 +937,8 @@ def _verdict(cfg, case, out, log, ctx):
     fit, held, sig_fit, sig_held = ctx["fit"], ctx["held"], ctx["sig_fit"], ctx["sig_held"]
     cells_after, _, _ = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
     k = improved.params.n_z - base.params.n_z
-    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
+    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b,
+                  "converged": ctx["baseline_converged"]}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
     if nonlin_found and not found:
