@@ -52,9 +52,10 @@ def _cell(c):
 
 def _table(header, rows, cls=None):
     h = "".join(f"<th>{html.escape(str(c))}</th>" for c in header)
+    h = f"<tr>{h}</tr>" if any(str(c) for c in header) else ""
     body = "".join("<tr>" + "".join(f"<td>{html.escape(_cell(c))}</td>" for c in r) + "</tr>"
                    for r in rows)
-    return f"<table{f' class={cls!r}' if cls else ''}><tr>{h}</tr>{body}</table>"
+    return f"<table{f' class={cls!r}' if cls else ''}>{h}{body}</table>"
 
 
 def _load(path):
