@@ -18,7 +18,7 @@ def frf_sparse(M, K, C, b, rows, f, power=0):
     H = np.empty((len(rows), len(f)), complex)
     for k, fk in enumerate(f):
         w = 2 * np.pi * fk
-        q = spla.splu((Ks - w**2 * Ms + 1j * w * Cs).tocsc()).solve(b)
+        q = spla.splu((Ks - w**2 * Ms + 1j * w * Cs).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
         H[:, k] = (1j * w) ** power * q[rows]
     return H
 
