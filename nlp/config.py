@@ -4,21 +4,24 @@ Every user mistake raises one :class:`nlp.errors.InputError` naming the file,
 the key and what is expected. See the README's case-file reference.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
+import re
 
 import yaml
 
 from .errors import InputError
+from .executors import EXECUTORS
 
 __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
-           "ExcitationConfig", "ChannelConfig", "DataConfig", "FrequencyConfig",
+           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "Multiplier", "FrequencyConfig",
            "ObjectiveConfig", "SolverSection", "SearchSection"]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
+FRF_BACKENDS = ("auto", "dense", "sparse", "reduced")   # nlp.frf_backends.BACKENDS
 
 
 MODEL_TYPES = ("shear_frame", "matrices", "opensees")
@@ -26,9 +29,9 @@ MODEL_TYPES = ("shear_frame", "matrices", "opensees")
 
 @dataclass(frozen=True)
 class ModelConfig:
-    type: str                      # "shear_frame" | "matrices" | "opensees"
-    masses: tuple = ()             # shear_frame: kg per floor
-    stiffnesses: tuple = ()        # shear_frame: N/m per story
+    type: str = "shear_frame"      # "shear_frame" | "matrices" | "opensees"
+    masses: tuple = ()             # shear_frame (required): floor masses [kg], ground up
+    stiffnesses: tuple = ()        # shear_frame (required): story stiffnesses [N/m]
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
     script: str = None             # opensees: the OpenSeesPy model script
     M: object = None               # matrices: path or {file, key} of M0 (.mtx, .npz, .mat)
@@ -36,37 +39,49 @@ class ModelConfig:
     dof_map: str = None            # matrices: (node, dof) of each row (CSV or array)
     constrained: tuple = ()        # matrices: (node, dof) rows to remove
     stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
-    mass_groups: dict = field(default_factory=dict)
+    mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
+    frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
+
+
+@dataclass(frozen=True)
+class Multiplier:
+    """A value stated as a multiple of the nominal one: ``{multiplier: x}`` (a number)
+    or, for bounds, ``{multiplier: [lo, hi]}`` (a pair)."""
+
+    value: object
 
 
 @dataclass(frozen=True)
 class ParameterConfig:
-    stiffness_bounds: tuple = (-0.5, 1.0)   # relative change
-    mass_bounds: tuple = (-0.5, 1.0)
-    fixed: dict = field(default_factory=dict)     # name -> physical value
-    initial: dict = field(default_factory=dict)   # name -> physical value
-    bounds: dict = field(default_factory=dict)    # name -> (lo, hi) physical
-    ties: dict = field(default_factory=dict)      # label -> [names]
-    total_mass: float = None
+    stiffness_bounds: tuple = (-0.5, 1.0)   # [lo, hi] relative change of every stiffness [-]
+    mass_bounds: tuple = (-0.5, 1.0)        # [lo, hi] relative change of every mass [-]
+    # Values in physical units (kg, N/m; damping in its model's units) or Multiplier
+    fixed: dict = field(default_factory=dict)     # name -> value [kg, N/m] or {multiplier: x}
+    initial: dict = field(default_factory=dict)   # name -> start value [kg, N/m] or {multiplier: x}
+    bounds: dict = field(default_factory=dict)    # name -> [lo, hi] [kg, N/m] or {multiplier: [lo, hi]}
+    ties: dict = field(default_factory=dict)      # (key: tie) label -> list of names sharing one variable
+    total_mass: float = None                      # known total mass, anchors the scale [kg]
+    prior: dict = field(default_factory=dict)     # diagnose: {masses: s, stiffnesses: s, <name>: s}, relative 1-sigma of the nominal value [-]
 
 
 @dataclass(frozen=True)
 class DampingConfig:
-    model: str = "general"                 # general | rayleigh | modal
-    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n
-    a0: float = None
-    a1: float = None
-    matrix: tuple = None                   # initial C [N s/m]
-    modal_zeta: tuple = None               # modal: initial ratios
-    diag_factor: float = 30.0
-    offdiag: float = 3.0
+    model: str = "general"                 # general | rayleigh | modal | modal_general | dashpots
+    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n [-]
+    a0: float = None                       # initial Rayleigh mass coefficient [1/s] (with a1)
+    a1: float = None                       # initial Rayleigh stiffness coefficient [s] (with a0)
+    matrix: tuple = None                   # initial C, list of rows [N s/m]
+    modal_zeta: tuple = None               # modal: initial damping ratio of each mode [-]
+    diag_factor: float = 30.0              # general: bounds of L[i,i] as a factor of the start [-]
+    offdiag: float = 3.0                   # general: bound of |L[i,j]| relative to the diagonal [-]
+    modes: tuple = None                    # modal_general: 1-based nominal modes (default: the band's)
 
 
 @dataclass(frozen=True)
 class ExcitationConfig:
     type: str = "ground"                   # ground | force
-    floor: int = None                      # force: 1-based
+    floor: int = None                      # force: floor of the shaker, 1 = lowest
     node: int = None                       # force at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
     direction: object = None               # ground: DOF of the table motion (default ux)
@@ -74,72 +89,95 @@ class ExcitationConfig:
 
 @dataclass(frozen=True)
 class ChannelConfig:
-    name: str
-    floor: int                             # 1-based (None when node and dof are given)
-    output: str                            # derived from quantity for time histories
-    column: object                         # FRF file: 0-based index; records: column name
-    weight: float = 1.0
+    name: str                              # channel name (default ch1, ch2, ...)
+    floor: int                             # (required unless node and dof) 1 = lowest floor
+    output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
+    column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
+    weight: float = 1.0                    # weight of the channel's residuals [-]
     quantity: str = None                   # time histories: acceleration | displacement | velocity
-    unit: str = None                       # time histories: unit in the file
+    unit: str = None                       # time histories: unit in the file (g, mm, m/s^2, ...)
     node: int = None                       # sensor at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
+    scale: float = 1.0                     # calibration: file value x scale = value in the unit
+    sign: int = 1                          # 1, or -1 for a sensor mounted the other way
+
+
+@dataclass(frozen=True)
+class ScreenConfig:
+    remove: bool = False                   # replace spikes/dropouts by interpolation (recorded)
+    spike_threshold: float = 8.0           # robust standard deviations from the local cubic
+    dropout_min_samples: int = 5           # identical samples in a row
 
 
 @dataclass(frozen=True)
 class DataConfig:
-    file: str                              # absolute path
-    format: str = "auto"                   # auto | npz | complex | magphase | db
-    unit_factor: float = 1.0               # multiplies the file's FRF to SI
-    channels: tuple = ()
+    file: str                              # (required unless records) data file, relative to the case
+    format: str = "auto"                   # auto | npz | complex | magphase | db | magnitude | db_magnitude
+    unit_factor: float = 1.0               # multiplies the file's FRF to SI [-]
+    channels: tuple = ()                   # (required) list of channels (data.channels[] below)
     type: str = "frf"                      # frf | time_histories
-    input: dict = None                     # time histories: {column, quantity, unit, floor}
-    estimator: str = "H1"                  # H1 | H2 | Hv
-    nperseg: object = None                 # samples per segment, or "all"
-    overlap: float = 0.5
-    window: str = "hann"
+    input: dict = None                     # time histories (required): {column, quantity, unit, floor, scale, sign, from: {column, mass, unit}}
+    estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
+    nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
+    overlap: float = 0.5                   # Welch segment overlap, fraction [-]
+    window: str = "hann"                   # Welch window (scipy.signal name)
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
+    db_reference: float = 1.0              # |H| that 0 dB stands for, in the file's FRF unit
+    records: tuple = ()                    # time histories: several records averaged (abs. paths)
+    columns: tuple = None                  # names of a headerless text file's columns
+    skip_rows: int = 0                     # leading lines of a text file to skip
+    time_column: str = None                # time column [s] (default t or time)
+    fs: float = None                       # sampling rate [Hz] when there is no time column
+    screen: ScreenConfig = field(default_factory=ScreenConfig)  # spikes and dropouts
+
+    @property
+    def has_phase(self):
+        """False for magnitude-only FRF files."""
+        return self.format not in ("magnitude", "db_magnitude")
 
 
 @dataclass(frozen=True)
 class FrequencyConfig:
     method: str = "half_power"             # half_power | bands | points | all
-    k: float = 1.0
-    bands: tuple = ()
-    points: tuple = ()
-    fmin: float = None
-    fmax: float = None
-    n_peaks: int = None
-    min_points_per_peak: int = 5
-    min_coherence: float = None
+    k: float = 1.0                         # half_power: window half-width in half-power bandwidths [-]
+    bands: tuple = ()                      # bands: list of [f_lo, f_hi] [Hz]
+    points: tuple = ()                     # points: list of frequencies [Hz]
+    fmin: float = None                     # lowest frequency used [Hz]
+    fmax: float = None                     # highest frequency used [Hz]
+    n_peaks: int = None                    # half_power: number of peaks (default: all found)
+    min_points_per_peak: int = 5           # half_power: widen a window to at least this many points
+    min_coherence: float = None            # drop points below this coherence (records) [-]
 
 
 @dataclass(frozen=True)
 class ObjectiveConfig:
-    residual: str = "log_magnitude"
+    residual: str = "log_magnitude"        # log_magnitude | magnitude | complex (needs phase)
 
 
 @dataclass(frozen=True)
 class SolverSection:
-    name: str = "ipopt"
-    options: dict = field(default_factory=dict)
-    compile: bool = True
+    name: str = "ipopt"                    # ipopt | sqpmethod
+    options: dict = field(default_factory=dict)  # passed to CasADi's nlpsol
+    compile: bool = True                   # compile the residual and Jacobian to C (cached)
 
 
 @dataclass(frozen=True)
 class SearchSection:
-    starts: int = 20
-    trial_factor: int = 10
-    seed: int = 0
-    workers: int = 1
+    starts: int = 20                       # local solves of the scatter search
+    trial_factor: int = 10                 # trial points per start
+    seed: int = 0                          # seed of the trial points
+    workers: int = 1                       # worker processes
+    executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
+    scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
 
 
 @dataclass(frozen=True)
 class CaseConfig:
-    path: str
-    name: str
-    description: str
+    path: str                                     # (internal) absolute path of the case file
+    name: str                                     # case name (default: the case folder's name)
+    description: str                              # free text
     model: ModelConfig
     parameters: ParameterConfig
     damping: DampingConfig
@@ -150,7 +188,22 @@ class CaseConfig:
     solver: SolverSection
     search: SearchSection
     updates: dict = field(default_factory=dict)   # name -> channel names, averaged (Table 1)
-    closeup_seconds: float = 3.0
+    closeup_seconds: float = 3.0                  # (key: verification.closeup_seconds) close-up length [s]
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads YAML 1.2 floats too: ``2.552e6`` and ``1e-3`` are numbers
+    (YAML 1.1 wants a dot and a signed exponent, and would read them as text)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
 class _Reader:
@@ -226,14 +279,21 @@ class _Reader:
 def load_case(path, overrides=None):
     """Read and validate a case file; returns a :class:`CaseConfig`.
 
-    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``.
+    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``,
+        ``executor``, ``scheduler``.
     """
     path = os.path.abspath(path)
     if not os.path.isfile(path):
         raise InputError(path, "<file>", "an existing case YAML file")
     try:
-        with open(path) as fh:
-            raw = yaml.safe_load(fh)
+        with open(path, "rb") as fh:
+            text = fh.read()
+        if b"\0" in text:
+            raise InputError(path, "<file>", "a YAML text file", "binary data")
+        raw = yaml.load(text.decode("utf-8"), Loader=_Loader)
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "<file>", "a YAML text file in UTF-8",
+                         f"undecodable byte at position {exc.start}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
     rd = _Reader(path)
@@ -259,13 +319,23 @@ def load_case(path, overrides=None):
         solver=_solver(rd, rd.mapping(raw, "solver")),
         search=_search(rd, rd.mapping(raw, "search")),
     )
+    if not cfg.data.has_phase and cfg.objective.residual == "complex":
+        raise rd.err("objective.residual", f"magnitude or log_magnitude (data.format "
+                     f"{cfg.data.format} has no phase)", "complex")
     cfg = _updates_and_verification(rd, raw, cfg)
     return _apply_overrides(cfg, overrides or {}, rd)
 
 
 def _model(rd, d, base):
+    """The model section; ``frf_backend`` applies to every model type."""
+    backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
+    return replace(_model_kind(rd, d, base), frf_backend=backend)
+
+
+def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
-                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
+                               "frf_backend"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
@@ -350,7 +420,7 @@ def _opensees_model(rd, d, base):
 
 def _parameters(rd, d):
     rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
-                                    "bounds", "tie", "total_mass"})
+                                    "bounds", "tie", "total_mass", "prior"})
     out = {}
     for key in ("stiffness_bounds", "mass_bounds"):
         if key in d:
@@ -361,9 +431,10 @@ def _parameters(rd, d):
             out[key] = (lo, hi)
     for key in ("fixed", "initial"):
         m = rd.mapping(d, f"parameters.{key}")
-        out[key] = {str(k): rd.number(m, k, f"parameters.{key}.{k}", required=True) for k in m}
+        out[key] = {str(k): _value_or_multiplier(rd, m, k, f"parameters.{key}.{k}") for k in m}
     bm = rd.mapping(d, "parameters.bounds")
-    out["bounds"] = {str(k): rd.interval(v, f"parameters.bounds.{k}") for k, v in bm.items()}
+    out["bounds"] = {str(k): _value_or_multiplier(rd, bm, k, f"parameters.bounds.{k}", pair=True)
+                     for k in bm}
     tm = rd.mapping(d, "parameters.tie")
     ties = {}
     for label, names in tm.items():
@@ -372,13 +443,35 @@ def _parameters(rd, d):
         ties[str(label)] = tuple(names)
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    pm = rd.mapping(d, "parameters.prior")
+    out["prior"] = {str(k): rd.number(pm, k, f"parameters.prior.{k}", required=True, positive=True)
+                    for k in pm}
     return ParameterConfig(**out)
+
+
+def _value_or_multiplier(rd, m, k, path, pair=False):
+    """A physical value (a number, or [lo, hi] for bounds) or ``{multiplier: ...}``."""
+    v = m[k]
+    if isinstance(v, dict):
+        rd.check_keys(v, path, {"multiplier"})
+        if "multiplier" not in v:
+            raise rd.err(path, "{multiplier: value}", v)
+        if pair:
+            lo, hi = rd.interval(v["multiplier"], f"{path}.multiplier")
+            if lo <= 0:
+                raise rd.err(f"{path}.multiplier", "multipliers > 0", list(v["multiplier"]))
+            return Multiplier((lo, hi))
+        return Multiplier(rd.number(v, "multiplier", f"{path}.multiplier", positive=True))
+    if pair:
+        return rd.interval(v, path)
+    return rd.number(m, k, path, required=True)
 
 
 def _damping(rd, d, n):
     rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
-                                 "diag_factor", "offdiag"})
-    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+                                 "diag_factor", "offdiag", "modes"})
+    model = rd.choice(d, "model", "damping.model",
+                      ("general", "rayleigh", "modal", "modal_general", "dashpots"), "general")
     out = dict(model=model)
     out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
     out["a0"] = rd.number(d, "a0", "damping.a0")
@@ -397,8 +490,17 @@ def _damping(rd, d, n):
         if n is not None and len(mat) != n:
             raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
         out["matrix"] = mat
+    if "modes" in d:
+        modes = rd.numbers(d["modes"], "damping.modes", positive=True)
+        if any(int(k) != k for k in modes) or (n is not None and max(modes) > n) \
+                or len(set(modes)) != len(modes):
+            raise rd.err("damping.modes", f"distinct mode numbers from 1 to {n}", d["modes"])
+        out["modes"] = tuple(sorted(int(k) for k in modes))
     if "modal_zeta" in d:
-        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+        length = len(out["modes"]) if model == "modal_general" and "modes" in out else \
+            (None if model == "modal_general" else n)
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=length,
+                                       positive=True)
     out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
     out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
     if out["diag_factor"] <= 1:
@@ -449,33 +551,45 @@ _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
-                              "validation_force_floor", "level_files"})
+                              "validation_force_floor", "level_files", "db_reference", "records",
+                              "columns", "skip_rows", "time_column", "fs", "screen"})
     kind = rd.choice(d, "type", "data.type", ("frf", "time_histories"), "frf")
     records = kind == "time_histories"
-    if "file" not in d:
+    rec_paths = _record_files(rd, d, base, records)
+    if "file" not in d and not rec_paths:
         raise rd.err("data.file", "the path of the measured data file (required)")
-    f = os.path.join(base, str(d["file"]))
+    f = os.path.join(base, str(d["file"])) if "file" in d else rec_paths[0]
     if not os.path.isfile(f):
         raise rd.err("data.file", "an existing file (relative to the case file)", d["file"])
+    if "file" in d and rec_paths:
+        raise rd.err("data.records", "either data.file or data.records, not both", d["records"])
     val = None
     if d.get("validation_file") is not None:
         val = os.path.join(base, str(d["validation_file"]))
         if not os.path.isfile(val):
             raise rd.err("data.validation_file", "an existing file", d["validation_file"])
-    fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db"), "auto")
+    fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db",
+                                                 "magnitude", "db_magnitude"), "auto")
     unit = rd.number(d, "unit_factor", "data.unit_factor", 1.0, positive=True)
     inp = None
     if records:
         inp = rd.mapping(d, "data.input", required=True)
-        rd.check_keys(inp, "data.input", {"column", "quantity", "unit", "floor"})
+        rd.check_keys(inp, "data.input", {"column", "quantity", "unit", "floor", "from", "scale",
+                                          "sign"})
         q = rd.choice(inp, "quantity", "data.input.quantity", ("ground_acceleration", "force"), None)
-        if "column" not in inp:
-            raise rd.err("data.input.column", "the name of the input record's column")
+        src = None
+        if "from" in inp:
+            src = _force_from(rd, inp, q)
+        elif "column" not in inp:
+            raise rd.err("data.input.column", "the name of the input record's column (or, for a "
+                         "force, from: {column, mass, unit})")
         floor = None
         if q == "force":
             floor = rd.number(inp, "floor", "data.input.floor", required=True, positive=True,
                               integer=True)
-        inp = {"column": str(inp["column"]), "quantity": q, "unit": inp.get("unit"), "floor": floor}
+        scale, sign = _scale_sign(rd, inp, "data.input")
+        inp = {"column": None if src else str(inp["column"]), "quantity": q,
+               "unit": inp.get("unit"), "floor": floor, "from": src, "scale": scale, "sign": sign}
     chans = d.get("channels")
     if not isinstance(chans, list) or not chans:
         raise rd.err("data.channels", "a list of channels, each {name, floor, output, column}", chans)
@@ -486,7 +600,7 @@ def _data(rd, d, base):
         if not isinstance(c, dict):
             raise rd.err(key, "a mapping {name, floor, output, column}", c)
         rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit",
-                               "node", "dof"})
+                               "node", "dof", "scale", "sign"})
         name = str(c.get("name", f"ch{i + 1}"))
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
@@ -501,16 +615,19 @@ def _data(rd, d, base):
                           ("acceleration", "displacement", "velocity"), None)
             ground = inp["quantity"] == "ground_acceleration"
             output = _QUANTITY_OUTPUT.get(q, "absolute_accelerance" if ground else "accelerance")
+            scale, sign = _scale_sign(rd, c, key)
             out.append(ChannelConfig(name=name, floor=floor, output=output,
                                      column=str(c.get("column", name)), weight=w, quantity=q,
-                                     unit=c.get("unit"), node=node, dof=dof))
+                                     unit=c.get("unit"), node=node, dof=dof, scale=scale,
+                                     sign=sign))
             continue
         output = rd.choice(c, "output", f"{key}.output", OUTPUTS, None)
         col = rd.number(c, "column", f"{key}.column", i, integer=True)
         if col < 0:
             raise rd.err(f"{key}.column", "a column index >= 0", col)
+        scale, sign = _scale_sign(rd, c, key)
         out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
-                                 node=node, dof=dof))
+                                 node=node, dof=dof, scale=scale, sign=sign))
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):
@@ -520,19 +637,100 @@ def _data(rd, d, base):
         raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
     vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
                        positive=True, integer=True)
-    levels = d.get("level_files") or []
-    if not isinstance(levels, list) or not all(isinstance(x, str) for x in levels):
-        raise rd.err("data.level_files", "a list of file names", levels)
-    level_paths = []
-    for i, x in enumerate(levels):
-        lp = os.path.join(base, x)
-        if not os.path.isfile(lp):
-            raise rd.err(f"data.level_files[{i}]", "an existing file", x)
-        level_paths.append(lp)
+    level_paths = _file_list(rd, d.get("level_files") or [], "data.level_files", base)
+    dbref = rd.number(d, "db_reference", "data.db_reference", 1.0, positive=True)
+    if "db_reference" in d and fmt not in ("db", "db_magnitude"):
+        raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
+    layout = _text_layout(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "hann")), validation_file=val,
-                      validation_force_floor=vfloor, level_files=tuple(level_paths))
+                      validation_force_floor=vfloor, level_files=tuple(level_paths),
+                      db_reference=dbref, records=tuple(rec_paths), **layout)
+
+
+def _record_files(rd, d, base, records):
+    """Absolute paths of data.records (several records of one test, averaged)."""
+    if "records" not in d:
+        return []
+    if not records:
+        raise rd.err("data.records", "records only with type: time_histories", d["records"])
+    if not d["records"]:
+        raise rd.err("data.records", "a non-empty list of record files", d["records"])
+    return _file_list(rd, d["records"], "data.records", base)
+
+
+def _file_list(rd, v, key, base):
+    """Absolute paths of a list of existing files named relative to the case file."""
+    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+        raise rd.err(key, "a list of file names (relative to the case file)", v)
+    out = []
+    for i, x in enumerate(v):
+        p = os.path.join(base, x)
+        if not os.path.isfile(p):
+            raise rd.err(f"{key}[{i}]", "an existing file (relative to the case file)", x)
+        out.append(p)
+    return out
+
+
+def _scale_sign(rd, d, key):
+    """Per-channel calibration: file value x scale x sign = value in the stated unit."""
+    scale = rd.number(d, "scale", f"{key}.scale", 1.0, positive=True)
+    sign = d.get("sign", 1)
+    if isinstance(sign, bool) or sign not in (1, -1):
+        raise rd.err(f"{key}.sign", "1 or -1", sign)
+    return scale, int(sign)
+
+
+def _force_from(rd, inp, quantity):
+    """data.input.from: a force known as mass x acceleration."""
+    if quantity != "force":
+        raise rd.err("data.input.from", "only with quantity: force", quantity)
+    src = rd.mapping(inp, "data.input.from")
+    rd.check_keys(src, "data.input.from", {"column", "mass", "unit"})
+    if "column" not in src:
+        raise rd.err("data.input.from.column", "the column of the measured acceleration")
+    if "column" in inp:
+        raise rd.err("data.input.column", "either column or from, not both", inp["column"])
+    mass = rd.number(src, "mass", "data.input.from.mass", required=True, positive=True)
+    if inp.get("unit") not in (None, "N"):
+        raise rd.err("data.input.unit", "no unit with from (the force is mass [kg] x "
+                     "acceleration; give the acceleration's unit as from.unit)", inp["unit"])
+    return {"column": str(src["column"]), "mass": mass, "unit": src.get("unit")}
+
+
+def _text_layout(rd, d, records):
+    """columns, skip_rows, time_column, fs and screen of the data section."""
+    out = {}
+    if not records:
+        for key in ("columns", "skip_rows", "time_column", "fs", "screen"):
+            if key in d:
+                raise rd.err(f"data.{key}", "only with type: time_histories", d[key])
+        return out
+    cols = d.get("columns")
+    if cols is not None:
+        if not isinstance(cols, list) or not cols or not all(isinstance(x, str) for x in cols) \
+                or len(set(cols)) != len(cols):
+            raise rd.err("data.columns", "a list of unique column names, in file order", cols)
+        out["columns"] = tuple(cols)
+    out["skip_rows"] = rd.number(d, "skip_rows", "data.skip_rows", 0, integer=True)
+    if out["skip_rows"] < 0:
+        raise rd.err("data.skip_rows", "an integer >= 0", out["skip_rows"])
+    if d.get("time_column") is not None:
+        out["time_column"] = str(d["time_column"])
+    out["fs"] = rd.number(d, "fs", "data.fs", None, positive=True)
+    sc = rd.mapping(d, "data.screen")
+    rd.check_keys(sc, "data.screen", {"remove", "spike_threshold", "dropout_min_samples"})
+    remove = sc.get("remove", False)
+    if not isinstance(remove, bool):
+        raise rd.err("data.screen.remove", "true or false", remove)
+    out["screen"] = ScreenConfig(
+        remove=remove,
+        spike_threshold=rd.number(sc, "spike_threshold", "data.screen.spike_threshold", 8.0,
+                                  positive=True),
+        dropout_min_samples=rd.number(sc, "dropout_min_samples", "data.screen.dropout_min_samples",
+                                      5, positive=True, integer=True))
+    return out
 
 
 def _updates_and_verification(rd, raw, cfg):
@@ -606,14 +804,26 @@ def _solver(rd, d):
 
 
 def _search(rd, d):
-    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers"})
+    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers", "executor",
+                                "scheduler"})
     return SearchSection(
         starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
         trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
                                integer=True),
         seed=rd.number(d, "seed", "search.seed", 0, integer=True),
         workers=rd.number(d, "workers", "search.workers", 1, positive=True, integer=True),
+        executor=rd.choice(d, "executor", "search.executor", EXECUTORS, "local"),
+        scheduler=_scheduler(rd.err, d.get("scheduler"), "search.scheduler"),
     )
+
+
+def _scheduler(err, v, key):
+    """A Dask scheduler address (protocol://host:port) or None."""
+    if v is None:
+        return None
+    if not isinstance(v, str) or "://" not in v:
+        raise err(key, "a Dask scheduler address such as tcp://host:8786", v)
+    return v
 
 
 def _apply_overrides(cfg, ov, rd):
@@ -625,6 +835,15 @@ def _apply_overrides(cfg, ov, rd):
             if key != "seed" and v < 1:
                 raise InputError("<arguments>", f"--{key}", "an integer >= 1", v)
             search = replace(search, **{key: int(v)})
+    if ov.get("executor") is not None:
+        search = replace(search, executor=ov["executor"])
+    if ov.get("scheduler") is not None:
+        search = replace(search, scheduler=_scheduler(
+            lambda k, e, g: InputError("<arguments>", k, e, g), ov["scheduler"], "--scheduler"))
+    if search.scheduler is not None and search.executor != "dask":
+        raise InputError("<arguments>" if ov.get("scheduler") else rd.file, "--scheduler"
+                         if ov.get("scheduler") else "search.scheduler",
+                         "executor 'dask' with a scheduler (--executor dask)", search.executor)
     if ov.get("solver") is not None:
         if ov["solver"] not in SOLVERS:
             raise InputError("<arguments>", "--solver", f"one of {list(SOLVERS)}", ov["solver"])
