@@ -17,18 +17,15 @@ here (not the package's FRF code) and checked against sparse direct solves of
     python scripts/make_frame3d.py [--seed 0] [--noise 0.02] [--out DIR]
 """
 
-import argparse
-import json
 import os
 
 import numpy as np
 import scipy.io
 import scipy.linalg as sla
 import scipy.sparse as sp
-import yaml
 
 from nlp.importers.opensees import assemble_script
-from sparse_sim import add_noise, frf_sparse
+from sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "frame3d_2100")
@@ -123,17 +120,9 @@ def make(seed=0, noise=0.02, out=CASE):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--noise", type=float, default=0.02)
-    ap.add_argument("--out", default=CASE)
-    a = ap.parse_args()
+    a = generator_args(__doc__, CASE)
     f, H, truth, case = make(a.seed, a.noise, a.out)
-    np.savez_compressed(os.path.join(a.out, "frf.npz"), f=f, H=H)
-    with open(os.path.join(a.out, "truth.json"), "w") as fh:
-        json.dump(truth, fh, indent=2)
-    with open(os.path.join(a.out, "case.yaml"), "w") as fh:
-        yaml.safe_dump(case, fh, sort_keys=False)
+    write_case(a.out, f, H, truth, case)
     print(f"wrote {a.out}: {H.shape[0]} channels x {f.size} points, {truth['n_dof']} DOFs, "
           f"{len(GROUPS)} groups; modes {np.round(truth['natural_frequencies_hz'][:12], 2)} Hz")
 

@@ -14,16 +14,13 @@ written here (not the package's FRF code), with 2 % complex Gaussian noise.
     python scripts/make_opensees_frame.py [--seed 0] [--noise 0.02] [--out DIR]
 """
 
-import argparse
-import json
 import os
 
 import numpy as np
 import scipy.linalg as sla
-import yaml
 
 from nlp.importers.opensees import assemble_script
-from sparse_sim import add_noise, frf_sparse
+from sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "opensees_frame")
@@ -87,21 +84,12 @@ def case_yaml(f_sway):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--noise", type=float, default=0.02)
-    ap.add_argument("--out", default=CASE)
-    a = ap.parse_args()
+    a = generator_args(__doc__, CASE)
     f, H, truth, (f_sway, _, _) = make(a.seed, a.noise, os.path.join(CASE, "frame.py"))
-    os.makedirs(a.out, exist_ok=True)
-    np.savez_compressed(os.path.join(a.out, "frf.npz"), f=f, H=H)
-    with open(os.path.join(a.out, "truth.json"), "w") as fh:
-        json.dump(truth, fh, indent=2)
+    write_case(a.out, f, H, truth, case_yaml(f_sway))
     if os.path.abspath(a.out) != os.path.abspath(CASE):
         import shutil
         shutil.copy(os.path.join(CASE, "frame.py"), a.out)
-    with open(os.path.join(a.out, "case.yaml"), "w") as fh:
-        yaml.safe_dump(case_yaml(f_sway), fh, sort_keys=False)
     print(f"wrote {a.out}: {H.shape[0]} channels x {f.size} points, {truth['n_dof']} DOFs; "
           f"sway modes {np.round(f_sway, 2)} Hz")
 

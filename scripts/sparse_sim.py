@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["frf_sparse", "add_noise"]
+__all__ = ["frf_sparse", "add_noise", "generator_args", "write_case"]
 
 
 def frf_sparse(M, K, C, b, rows, f, power=0):
@@ -27,3 +27,26 @@ def add_noise(H, noise, rng):
     """H (1 + noise e), e complex Gaussian with E|e|^2 = 1 (noise relative to |H|)."""
     e = (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
     return H * (1 + noise * e)
+
+
+def generator_args(doc, default_out):
+    """--seed, --noise, --out of a case generator."""
+    import argparse
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--noise", type=float, default=0.02)
+    ap.add_argument("--out", default=default_out)
+    return ap.parse_args()
+
+
+def write_case(out, f, H, truth, case):
+    """frf.npz (f [Hz], H), truth.json and case.yaml in out."""
+    import json
+    import os
+    import yaml
+    os.makedirs(out, exist_ok=True)
+    np.savez_compressed(os.path.join(out, "frf.npz"), f=f, H=H)
+    with open(os.path.join(out, "truth.json"), "w") as fh:
+        json.dump(truth, fh, indent=2)
+    with open(os.path.join(out, "case.yaml"), "w") as fh:
+        yaml.safe_dump(case, fh, sort_keys=False)
