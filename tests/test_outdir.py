@@ -171,6 +171,7 @@ def test_run_twice_prev_permissions_provenance_and_cache_repair(case, tmp_path):
     assert r2["flags"] == []
 
 
+@pytest.mark.slow
 def test_sigkill_before_the_swap_keeps_the_old_folder(case, tmp_path):
     path, _, _ = case
     out = str(tmp_path / "out")
