@@ -63,24 +63,11 @@ LEVEL_Z = 5.0          # story-stiffness change between levels, in standard erro
 
 
 # ---------------------------------------------------------------------- noise
-def _n_averages(cfg, records):
-    d = cfg.data
-    if records is None or d.nperseg in (None, "all"):
-        n = records.t.size if records is not None else 0
-        nper = n if d.nperseg == "all" else max(2 ** int(math.log2(max(n // 8, 1))), 1)
-    else:
-        n, nper = records.t.size, int(d.nperseg)
-    if records is None:
-        return 1
-    step = max(nper - int(d.overlap * nper), 1)
-    return max((n - nper) // step + 1, 1)
-
-
 def noise_sigma(case, idx):
     """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx))."""
     n_ch = case.H.shape[0]
     if case.coherence is not None:
-        nd = _n_averages(case.config, case.records)
+        nd = case.n_averages  # Welch segments of the estimate itself (estimate.FRFEstimate)
         if nd > 1:
             g2 = np.clip(case.coherence[:, idx], 1e-4, 1 - 1e-12)
             return np.sqrt((1 - g2) / (2 * nd * g2)) + 1e-4
