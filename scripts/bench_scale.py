@@ -20,7 +20,8 @@ log(median solve) against log(n) for n >= 64 (the growth exponent).
 Run:  python scripts/bench_scale.py [--sizes 4 8 16 ...] [--starts 3] [--seed 0]
       [--backend auto|dense|sparse|reduced] [--case CASE.yaml ...]
 --case adds imported-model cases (one `assemble` + local solves from z0; parameter
-error against the case folder's truth.json when it maps parameter names to values).
+error against the case folder's truth.json: {"alpha": {name: relative change}} or
+{name: physical value}).
 """
 
 import os
@@ -154,8 +155,11 @@ def run_case(path, args):
         with open(truth_file) as fh:
             truth = json.load(fh)
         theta = problem.theta(best.z)
-        errs = [abs(p.nominal * (1 + t) / truth[p.name] - 1) for p, t in zip(case.params.params, theta)
-                if p.group == "stiffness" and p.name in truth and not p.fixed]
+        rel = truth.get("alpha", {})  # relative changes, or physical values by name
+        errs = [abs((1 + t) / (1 + rel[p.name]) - 1) if p.name in rel else
+                abs(p.nominal * (1 + t) / truth[p.name] - 1)
+                for p, t in zip(case.params.params, theta)
+                if p.group == "stiffness" and not p.fixed and (p.name in rel or p.name in truth)]
         err = max(errs) if errs else float("nan")
     return {"n": case.model.n, "backend": problem.backend, "build": build,
             "solve": float(np.median([r.seconds for r in results])),
