@@ -37,6 +37,8 @@ import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
 from nlp.damping import RayleighDamping  # noqa: E402
+from nlp.frf_backends import reduced  # noqa: E402
+from nlp.frf_backends.system import LinearSystem  # noqa: E402
 from nlp.model import shear_frame  # noqa: E402
 from nlp.parameters import Parameter, ParameterSet  # noqa: E402
 from nlp.problem import Channel, Target, UpdatingProblem  # noqa: E402
@@ -128,8 +130,14 @@ def cold_build(build):
 
 def run_frame(n, args):
     model, damping, params, target, truth, backend = frame_problem(n, args.seed, args.backend)
-    problem, build = cold_build(lambda: UpdatingProblem(model, damping, params, target,
-                                                        frf_backend=backend))
+    def build_frame():
+        basis = None
+        if backend == "reduced":  # fixed basis from the nominal model (nlp.frf_backends.reduced)
+            full = LinearSystem.from_model(model, damping, target)
+            basis = reduced.basis(full, float(target.omega.max()))
+        return UpdatingProblem(model, damping, params, target, frf_backend=backend, basis=basis)
+
+    problem, build = cold_build(build_frame)
     results = [problem.solve(z) for z in starts(problem, args.starts, args.seed)]
     best = min(results, key=lambda r: r.f)
     z_groups = best.z[:truth.size]  # the group variables come first (alpha, scale 1)
