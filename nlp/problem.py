@@ -415,7 +415,8 @@ class UpdatingProblem:
         info = getattr(self, "reduced_info", None)
         if info:
             text += (f"; {info['vectors']} basis vectors, RMS ln|H| error {info['rms_log_error']:.2g}"
-                     f" vs noise {info['noise']:.2g}")
+                     f" vs noise {info['noise']:.2g} at {info['points_checked']} of the case's"
+                     f" frequencies")
         return text
 
     # ------------------------------------------------------------- numerics

@@ -171,7 +171,8 @@ class SparseFRF:
     def _choose_solver(self):
         n, pat = self.n, self.pat
         m = self.m
-        self.batched = n + m <= BATCH_MAX
+        # small, or small and dense (a projected reduced system): one batched LU
+        self.batched = n + m <= BATCH_MAX or (n + m <= 300 and pat.P.nnz >= 0.25 * n * n)
         # bordered pattern [[Z_s, B], [U^T, -I]] (entry order: Z_s, B, U^T, -I)
         i_u = np.repeat(np.arange(n), m)
         a_u = np.tile(np.arange(m), n)
