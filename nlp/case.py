@@ -1,6 +1,7 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.io
@@ -13,6 +14,7 @@ from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
+from .noise import noise_model
 from .readers import read_frf, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem"]
@@ -33,6 +35,7 @@ class Case:
     target: Target
     coherence: np.ndarray = None   # (n_ch, n_f) when estimated from records
     records: object = None         # readers.TimeHistories when the data are records
+    noise: object = None           # noise.NoiseModel of H (per channel and frequency)
 
 
 def _load_model(cfg):
@@ -185,7 +188,7 @@ def _detection_form(f, H, channels, excitation):
     return out
 
 
-def _select(cfg, f, H, channels, excitation, coherence=None):
+def _select(cfg, f, H, channels, excitation, coherence=None, sigma=None):
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -198,19 +201,29 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
         try:
-            idx = _half_power(cfg, f, H, channels, excitation, coherence)
+            idx = _half_power(cfg, f, H, channels, excitation, coherence, sigma)
         except InputError as exc:  # freqsel names its argument; say which case key it is
             raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
     return _nonempty(cfg, f, idx)
 
 
-def _half_power(cfg, f, H, channels, excitation, coherence):
+def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
+    """Half-power selection on the detection form; sigma: std of ln|H| (n_ch, n_f), so
+    that a peak must stand out of the noise (carried over to the detection form)."""
     fc = cfg.frequencies
-    return select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
+    det = _detection_form(f, H, channels, excitation)
+    if sigma is not None:
+        jw = 2j * np.pi * f
+        power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.array([np.abs(H[c] * jw ** (2 - power[ch.output])) / np.abs(det[c])
+                              for c, ch in enumerate(channels)])
+        sigma = sigma * np.nan_to_num(ratio, nan=1.0, posinf=1.0)
+    return select_frequencies(f, det, k=fc.k,
                               coherence=coherence, min_coherence=fc.min_coherence,
                               bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                               min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
-                              fmax=fc.fmax)
+                              fmax=fc.fmax, sigma=sigma)
 
 
 def _nonempty(cfg, f, idx):
@@ -258,7 +271,9 @@ def assemble(cfg, channels=None, data_file=None):
     H = H[rows]
     if coherence is not None:
         coherence = coherence[rows]
-    idx = _select(cfg, f, H, channels, ex.type, coherence)
+    noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
+                                        records=records, channels=tuple(channels)))
+    idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type,
@@ -269,7 +284,7 @@ def assemble(cfg, channels=None, data_file=None):
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records)
+                records=records, noise=noise)
 
 
 def build_problem(case):

@@ -419,7 +419,8 @@ def _data(rd, d, base):
         level_paths.append(lp)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
-                      window=str(d.get("window", "hann")), validation_file=val,
+                      window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),
+                      validation_file=val,
                       validation_force_floor=vfloor, level_files=tuple(level_paths))
 
 
