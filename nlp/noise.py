@@ -303,8 +303,8 @@ def _from_records(case):
     if nperseg is None:
         nperseg = int(2 ** np.floor(np.log2(max(n // 8, 1))))
     noverlap = int(d.overlap * nperseg)
+    # the count from the segmenting itself, with the overlap correction
     n_d, n_eff = welch_averages(n, nperseg, noverlap, d.window)
-    n_eff = float(getattr(case, "n_averages", None) or n_eff)
     mask = rest_mask(x, y, rec.fs)
     s_n = None if mask is None else rest_noise_psd(np.vstack([x, y]), rec.fs, mask, case.f)
     if n_d == 1:
