@@ -1,21 +1,22 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
+import os
 from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-import scipy.io
 
 from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
 from .errors import InputError
 from .freqsel import select_frequencies
 from .identify import SCALE_EXPLANATION, scale_null_space
+from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
 from .noise import noise_model
-from .readers import read_frf, read_time_histories
+from .readers import read_frf, read_frf_coherence, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem"]
 
@@ -34,42 +35,76 @@ class Case:
     selected: np.ndarray     # indices into f used in the objective
     target: Target
     coherence: np.ndarray = None   # (n_ch, n_f) when estimated from records
-    records: object = None         # readers.TimeHistories when the data are records
+    records: object = None         # readers.TimeHistories when the data are records (the first)
+    n_averages: int = 1            # Welch segments averaged in the estimate (all records)
+    quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
+    has_phase: bool = True         # False for magnitude-only FRF files
     noise: object = None           # noise.NoiseModel of H (per channel and frequency)
+
+
+# Imported models up to this size run on the dense symbolic FRF; larger ones stay sparse.
+DENSE_MAX = 400
 
 
 def _load_model(cfg):
     m = cfg.model
     if m.type == "shear_frame":
         return shear_frame(m.masses, m.stiffnesses)
-    try:
-        raw = dict(np.load(m.file)) if m.file.endswith(".npz") else scipy.io.loadmat(m.file)
-    except Exception as exc:  # unreadable file: a user mistake
-        raise InputError(m.file, "<file>", f"a readable .npz or .mat file ({exc})") from None
-    for key in ("M0", "K0", "M_infl", "K_infl"):
-        if key not in raw:
-            raise InputError(m.file, key, "an array named so (M0, K0: n x n; M_infl, K_infl: "
-                             "r x n x n)")
-    M0, K0 = np.asarray(raw["M0"], float), np.asarray(raw["K0"], float)
-    n = M0.shape[0]
-    Mi, Ki = np.asarray(raw["M_infl"], float), np.asarray(raw["K_infl"], float)
-    for key, a, dims in (("M0", M0, 2), ("K0", K0, 2), ("M_infl", Mi, 3), ("K_infl", Ki, 3)):
-        if a.ndim != dims or a.shape[-2:] != (n, n) or not np.all(np.isfinite(a)):
-            raise InputError(m.file, key, f"finite array of shape {'(r, ' if dims == 3 else '('}{n}, {n})",
-                             f"shape {a.shape}")
-    if np.any(np.linalg.eigvalsh(M0) <= 0):
-        raise InputError(m.file, "M0", "a symmetric positive definite mass matrix")
+    model = load_model(m, cfg.path)
+    return model.dense() if model.n <= DENSE_MAX else model
 
-    def names(key, r, prefix):
-        v = raw.get(key)
-        return tuple(str(x).strip() for x in np.ravel(v)) if v is not None else \
-            tuple(f"{prefix}{i + 1}" for i in range(r))
 
-    return StructuralModel(M0=M0, K0=K0, M_infl=tuple(Mi), K_infl=tuple(Ki),
-                           beta_names=names("beta_names", len(Mi), "beta"),
-                           alpha_names=names("alpha_names", len(Ki), "alpha"),
-                           beta_nominal=np.ones(len(Mi)), alpha_nominal=np.ones(len(Ki)),
-                           dof_names=tuple(f"dof{i + 1}" for i in range(n)))
+def _groups_cover(model):
+    """True when the influence matrices add up to M0 and K0 (a shear frame). Otherwise a
+    part of the model that no parameter scales (an imported model's other elements
+    or masses) anchors the M-C-K scale."""
+    import scipy.sparse as sp
+
+    def gap(A0, parts):
+        rest = A0 - sum(parts) if parts else A0
+        rest = rest.toarray() if sp.issparse(rest) else np.asarray(rest)
+        a0 = A0.toarray() if sp.issparse(A0) else np.asarray(A0)
+        return np.abs(rest).max() <= 1e-9 * np.abs(a0).max()
+
+    return gap(model.M0, list(model.M_infl)) and gap(model.K0, list(model.K_infl))
+
+
+def _dof_index(cfg, model, key, floor, node, dof):
+    """0-based row of a floor (shorthand) or of a node and DOF of an imported model."""
+    n = model.n
+    if node is None:
+        if floor > n:
+            raise InputError(cfg.path, f"{key}.floor", f"a floor (DOF) number from 1 to {n}", floor)
+        return floor - 1
+    if not model.dofs:
+        raise InputError(cfg.path, f"{key}.node", "a floor: this model has no node-to-DOF map "
+                         "(model.dof_map, or an OpenSees script)", node)
+    nodes = {nd for nd, _ in model.dofs}
+    if node not in nodes:
+        raise InputError(cfg.path, f"{key}.node", "a node tag of the model (with a free DOF)", node)
+    ndf = max(d for _, d in model.dofs)
+    num = dof_number(dof, 6 if ndf > 3 else ndf, model.ndm)
+    i = None if num is None else find_dof(model.dofs, node, num)
+    if i is None:
+        free = [d for nd, d in model.dofs if nd == node]
+        raise InputError(cfg.path, f"{key}.dof", f"a free DOF of node {node} (numbers {free})", dof)
+    return i
+
+
+def _ground_r(cfg, model):
+    """Influence vector of the ground motion (None: all ones, the shear-frame case)."""
+    ex = cfg.excitation
+    if not model.dofs:
+        if ex.direction is not None:
+            raise InputError(cfg.path, "excitation.direction", "no direction: this model has no "
+                             "node-to-DOF map, the ground moves every DOF", ex.direction)
+        return None
+    ndf = max(d for _, d in model.dofs)
+    d = dof_number(ex.direction if ex.direction is not None else 1, 6 if ndf > 3 else ndf, model.ndm)
+    if d is None or d > (3 if ndf >= 6 or model.ndm == 3 else 2):
+        raise InputError(cfg.path, "excitation.direction", "a translation (ux, uy or uz)",
+                         ex.direction)
+    return ground_influence(model.dofs, d)
 
 
 def _damping(cfg, model):
@@ -149,29 +184,83 @@ def _parameters(cfg, model, damping):
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
-def _read_data(cfg, path=None):
-    """(f, H, coherence, records) of the case's data file (or another test's)."""
+def _record_spec(d):
+    """Channel specs for readers.read_time_histories: the input, then each channel."""
+    inp = d.input
+    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"],
+                          "from": inp.get("from"), "scale": inp.get("scale", 1.0),
+                          "sign": inp.get("sign", 1)}}
+    for c in d.channels:
+        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit,
+                        "scale": c.scale, "sign": c.sign}
+    return {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
+
+
+def _read_records(cfg, paths):
+    """Records of the case (screened, and repaired when asked), the FRF estimate over
+    all their segments, and the quality report."""
+    from .quality import screen_records
+
     d = cfg.data
-    path = path or d.file
+    spec = _record_spec(d)
+    xs, ys, reports, first = [], [], [], None
+    for path in paths:
+        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
+            raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
+                             rec.fs)
+        sc = d.screen
+        data, rep = screen_records(rec.data, rec.fs, remove=sc.remove,
+                                   spike_threshold=sc.spike_threshold,
+                                   dropout_min_samples=sc.dropout_min_samples, t0=float(rec.t[0]))
+        if sc.remove:
+            rec = type(rec)(t=rec.t, fs=rec.fs, data=data)
+        first = first or rec
+        reports.append((path, rep))
+        xs.append(rec.data["__input__"])
+        ys.append(np.array([rec.data[c.name] for c in d.channels]))
+    n = min(x.size for x in xs)
+    nperseg = n if d.nperseg == "all" else d.nperseg
+    noverlap = None if nperseg is None else int(d.overlap * nperseg)
+    if nperseg is None:  # the default segment, with the case's overlap (not scipy's half)
+        from .estimate import _default_nperseg
+        nperseg = _default_nperseg(n)
+        noverlap = int(d.overlap * nperseg)
+    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                       noverlap=noverlap, window=d.window, source=paths[0])
+    return est, first, reports
+
+
+def _read_data(cfg, path=None):
+    """(f, H, coherence, records, n_averages, quality) of the case's data (or another test's)."""
+    d = cfg.data
     if d.type == "frf":
+        path = path or d.file
         fmt = d.format
         if fmt == "auto":
             fmt = "npz" if path.endswith(".npz") else "complex"
-        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex")
-        return f, H * d.unit_factor, None, None
-    inp = d.input
-    spec = {"__input__": {"column": inp["column"], "quantity": inp["quantity"], "unit": inp["unit"]}}
-    for c in d.channels:
-        spec[c.name] = {"column": c.column, "quantity": c.quantity, "unit": c.unit}
-    spec = {k: {kk: vv for kk, vv in v.items() if vv is not None} for k, v in spec.items()}
-    rec = read_time_histories(path, spec)
-    x = rec.data["__input__"]
-    y = np.array([rec.data[c.name] for c in d.channels])
-    nperseg = x.size if d.nperseg == "all" else d.nperseg
-    noverlap = None if nperseg is None else int(d.overlap * nperseg)
-    est = estimate_frf(x, y, rec.fs, estimator=d.estimator, nperseg=nperseg, noverlap=noverlap,
-                       window=d.window, source=path)
-    return est.f, est.H, est.coherence, rec
+        f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex", db_reference=d.db_reference)
+        coh, n_avg = read_frf_coherence(path, *H.shape)   # .npz may carry them (noise model)
+        return f, H * d.unit_factor, coh, None, n_avg or 1, None
+    paths = [path] if path else list(d.records or (d.file,))
+    est, rec, reports = _read_records(cfg, paths)
+    return est.f, est.H, est.coherence, rec, est.n_averages, _merge_quality(reports)
+
+
+def _merge_quality(reports):
+    """One report over all records (file named in each glitch's channel when several)."""
+    from .quality import QualityReport
+
+    if len(reports) == 1:
+        return reports[0][1]
+    glitches = []
+    for path, rep in reports:
+        tag = os.path.basename(path)
+        glitches += [type(g)(f"{tag}:{g.channel}", g.kind, g.start, g.stop, g.time_s)
+                     for g in rep.glitches]
+    return QualityReport(tuple(glitches), sum(r.n_samples for _, r in reports), reports[0][1].removed,
+                         reports[0][1].settings)
 
 
 def _detection_form(f, H, channels, excitation):
@@ -245,18 +334,19 @@ def assemble(cfg, channels=None, data_file=None):
     n = model.n
     damping = _damping(cfg, model)
     params = _parameters(cfg, model, damping)
-    f, H, coherence, records = _read_data(cfg, data_file)
+    f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
-    if ex.type == "force" and ex.floor > n:
-        raise InputError(cfg.path, "excitation.floor", f"a floor number from 1 to {n}", ex.floor)
+    force_dof = None
+    if ex.type == "force":
+        force_dof = _dof_index(cfg, model, "excitation", ex.floor, ex.node, ex.dof)
+    ground_r = _ground_r(cfg, model) if ex.type == "ground" else None
     chans = []
     rows = []
     for i, c in enumerate(cfg.data.channels):
         if channels is not None and c.name not in channels:
             continue
         key = f"data.channels[{i}]"
-        if c.floor > n:
-            raise InputError(cfg.path, f"{key}.floor", f"a floor number from 1 to {n}", c.floor)
+        dof = _dof_index(cfg, model, key, c.floor, c.node, c.dof)
         if cfg.data.type == "frf" and c.column >= H.shape[0]:
             raise InputError(cfg.path, f"{key}.column",
                              f"a column index below {H.shape[0]} (the data file has {H.shape[0]} FRFs)",
@@ -264,27 +354,38 @@ def assemble(cfg, channels=None, data_file=None):
         if c.output == "absolute_accelerance" and ex.type != "ground":
             raise InputError(cfg.path, f"{key}.output", "receptance, mobility or accelerance "
                              "(absolute_accelerance needs ground excitation)", c.output)
-        chans.append(Channel(c.name, c.floor - 1, c.output))
+        if c.output == "absolute_accelerance" and ground_r is not None and ground_r[dof] != 1:
+            raise InputError(cfg.path, f"{key}.output", "a relative output (receptance, mobility, "
+                             "accelerance): absolute_accelerance needs a DOF along the ground "
+                             "motion", c.output)
+        chans.append(Channel(c.name, dof, c.output))
         rows.append(c.column if cfg.data.type == "frf" else i)
+    gains = np.array([c.scale * c.sign for c in cfg.data.channels
+                      if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
     H = H[rows]
+    if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
+        H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
     noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
-                                        records=records, channels=tuple(channels)))
+                                        records=records, channels=tuple(channels),
+                                        n_averages=n_avg))
     idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
-                    channels=tuple(channels), excitation=ex.type,
-                    force_dof=None if ex.floor is None else ex.floor - 1)
-    if scale_null_space(params, damping, ex.type, cfg.parameters.total_mass):
+                    channels=tuple(channels), excitation=ex.type, force_dof=force_dof,
+                    ground_r=ground_r)
+    if _groups_cover(model) and scale_null_space(params, damping, ex.type,
+                                                 cfg.parameters.total_mass):
         raise InputError(cfg.path, "parameters",
                          "a scale anchor (a fixed weighed mass or parameters.total_mass). "
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records, noise=noise)
+                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase,
+                noise=noise)
 
 
 def build_problem(case):

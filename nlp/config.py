@@ -11,9 +11,10 @@ import os
 import yaml
 
 from .errors import InputError
+from .executors import EXECUTORS
 
 __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
-           "ExcitationConfig", "ChannelConfig", "DataConfig", "FrequencyConfig",
+           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "FrequencyConfig",
            "ObjectiveConfig", "SolverSection", "SearchSection"]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
@@ -21,12 +22,23 @@ RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
 
 
+MODEL_TYPES = ("shear_frame", "matrices", "opensees")
+
+
 @dataclass(frozen=True)
 class ModelConfig:
-    type: str                      # "shear_frame" | "matrices"
+    type: str                      # "shear_frame" | "matrices" | "opensees"
     masses: tuple = ()             # shear_frame: kg per floor
     stiffnesses: tuple = ()        # shear_frame: N/m per story
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
+    script: str = None             # opensees: the OpenSeesPy model script
+    M: object = None               # matrices: path or {file, key} of M0 (.mtx, .npz, .mat)
+    K: object = None               # matrices: same for K0
+    dof_map: str = None            # matrices: (node, dof) of each row (CSV or array)
+    constrained: tuple = ()        # matrices: (node, dof) rows to remove
+    stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
+    mass_groups: dict = field(default_factory=dict)
+    ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
 
 
 @dataclass(frozen=True)
@@ -56,23 +68,37 @@ class DampingConfig:
 class ExcitationConfig:
     type: str = "ground"                   # ground | force
     floor: int = None                      # force: 1-based
+    node: int = None                       # force at a node ...
+    dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
+    direction: object = None               # ground: DOF of the table motion (default ux)
 
 
 @dataclass(frozen=True)
 class ChannelConfig:
     name: str
-    floor: int                             # 1-based
+    floor: int                             # 1-based (None when node and dof are given)
     output: str                            # derived from quantity for time histories
     column: object                         # FRF file: 0-based index; records: column name
     weight: float = 1.0
     quantity: str = None                   # time histories: acceleration | displacement | velocity
     unit: str = None                       # time histories: unit in the file
+    node: int = None                       # sensor at a node ...
+    dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
+    scale: float = 1.0                     # calibration: file value x scale = value in the unit
+    sign: int = 1                          # 1, or -1 for a sensor mounted the other way
+
+
+@dataclass(frozen=True)
+class ScreenConfig:
+    remove: bool = False                   # replace spikes/dropouts by interpolation (recorded)
+    spike_threshold: float = 8.0           # robust standard deviations from the local cubic
+    dropout_min_samples: int = 5           # identical samples in a row
 
 
 @dataclass(frozen=True)
 class DataConfig:
     file: str                              # absolute path
-    format: str = "auto"                   # auto | npz | complex | magphase | db
+    format: str = "auto"                   # auto | npz | complex | magphase | db | magnitude | db_magnitude
     unit_factor: float = 1.0               # multiplies the file's FRF to SI
     channels: tuple = ()
     type: str = "frf"                      # frf | time_histories
@@ -84,6 +110,18 @@ class DataConfig:
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
+    db_reference: float = 1.0              # |H| that 0 dB stands for, in the file's FRF unit
+    records: tuple = ()                    # time histories: several records averaged (abs. paths)
+    columns: tuple = None                  # names of a headerless text file's columns
+    skip_rows: int = 0                     # leading lines of a text file to skip
+    time_column: str = None                # time column [s] (default t or time)
+    fs: float = None                       # sampling rate [Hz] when there is no time column
+    screen: ScreenConfig = field(default_factory=ScreenConfig)  # spikes and dropouts
+
+    @property
+    def has_phase(self):
+        """False for magnitude-only FRF files."""
+        return self.format not in ("magnitude", "db_magnitude")
 
 
 @dataclass(frozen=True)
@@ -117,6 +155,8 @@ class SearchSection:
     trial_factor: int = 10
     seed: int = 0
     workers: int = 1
+    executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
+    scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
 
 
 @dataclass(frozen=True)
@@ -210,7 +250,8 @@ class _Reader:
 def load_case(path, overrides=None):
     """Read and validate a case file; returns a :class:`CaseConfig`.
 
-    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``.
+    overrides : dict of CLI overrides: ``starts``, ``seed``, ``workers``, ``solver``,
+        ``executor``, ``scheduler``.
     """
     path = os.path.abspath(path)
     if not os.path.isfile(path):
@@ -243,13 +284,17 @@ def load_case(path, overrides=None):
         solver=_solver(rd, rd.mapping(raw, "solver")),
         search=_search(rd, rd.mapping(raw, "search")),
     )
+    if not cfg.data.has_phase and cfg.objective.residual == "complex":
+        raise rd.err("objective.residual", f"magnitude or log_magnitude (data.format "
+                     f"{cfg.data.format} has no phase)", "complex")
     cfg = _updates_and_verification(rd, raw, cfg)
     return _apply_overrides(cfg, overrides or {}, rd)
 
 
 def _model(rd, d, base):
-    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file"})
-    kind = rd.choice(d, "type", "model.type", ("shear_frame", "matrices"), "shear_frame")
+    rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+    kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
             raise rd.err("model.masses", "a list of floor masses in kg (required)")
@@ -261,12 +306,74 @@ def _model(rd, d, base):
             raise rd.err("model.stiffnesses", f"{len(m)} values, one per story like model.masses",
                          f"{len(k)} values")
         return ModelConfig(type=kind, masses=m, stiffnesses=k)
-    if "file" not in d:
-        raise rd.err("model.file", "a .npz or .mat file with M0, K0, M_infl, K_infl")
-    f = os.path.join(base, str(d["file"]))
+    if kind == "opensees":
+        return _opensees_model(rd, d, base)
+    if "file" in d:
+        f = os.path.join(base, str(d["file"]))
+        if not os.path.isfile(f):
+            raise rd.err("model.file", "an existing file", d["file"])
+        return ModelConfig(type=kind, file=f)
+    if "M" not in d or "K" not in d:
+        raise rd.err("model.K" if "M" in d else "model.M", "matrix files model.M and model.K "
+                     "(.mtx, .npz, .mat), or model.file with M0, K0, M_infl, K_infl")
+    out = {key: _matrix_spec(rd, d[key], f"model.{key}", base) for key in ("M", "K")}
+    for section in ("stiffness_groups", "mass_groups"):
+        groups = rd.mapping(d, f"model.{section}")
+        out[section] = {str(k): _matrix_spec(rd, v, f"model.{section}.{k}", base)
+                        for k, v in groups.items()}
+    if not out["stiffness_groups"] and not out["mass_groups"]:
+        raise rd.err("model.stiffness_groups", "at least one group matrix (an updating parameter)")
+    if d.get("dof_map") is not None:
+        out["dof_map"] = _existing(rd, d["dof_map"], "model.dof_map", base)
+    cons = d.get("constrained") or []
+    if not isinstance(cons, list) or not all(isinstance(c, list) and len(c) == 2 for c in cons):
+        raise rd.err("model.constrained", "a list of [node, dof] pairs", cons)
+    out["constrained"] = tuple((c[0], c[1]) for c in cons)
+    if d.get("ndm") is not None:
+        out["ndm"] = rd.number(d, "ndm", "model.ndm", integer=True)
+        if out["ndm"] not in (2, 3):
+            raise rd.err("model.ndm", "2 or 3", out["ndm"])
+    return ModelConfig(type=kind, **out)
+
+
+def _existing(rd, name, key, base):
+    f = os.path.join(base, str(name))
     if not os.path.isfile(f):
-        raise rd.err("model.file", "an existing file", d["file"])
-    return ModelConfig(type=kind, file=f)
+        raise rd.err(key, "an existing file (relative to the case file)", name)
+    return f
+
+
+def _matrix_spec(rd, v, key, base):
+    """A matrix file: a path, or {file, key} for one array of an NPZ/MAT file."""
+    if isinstance(v, dict):
+        rd.check_keys(v, key, {"file", "key"})
+        if "file" not in v:
+            raise rd.err(f"{key}.file", "the matrix file's path")
+        return {"file": _existing(rd, v["file"], f"{key}.file", base),
+                "key": None if v.get("key") is None else str(v["key"])}
+    if not isinstance(v, str):
+        raise rd.err(key, "a matrix file path (.mtx, .npz, .mat) or {file, key}", v)
+    return _existing(rd, v, key, base)
+
+
+def _opensees_model(rd, d, base):
+    if "script" not in d:
+        raise rd.err("model.script", "the path of an OpenSeesPy model script (required)")
+    script = _existing(rd, d["script"], "model.script", base)
+    out = {}
+    for section in ("stiffness_groups", "mass_groups"):
+        groups = rd.mapping(d, f"model.{section}")
+        for k, v in groups.items():
+            ok = isinstance(v, str) or (isinstance(v, list) and v and all(
+                isinstance(x, int) and not isinstance(x, bool) for x in v)) or (
+                isinstance(v, dict) and set(v) <= {"elements", "nodes"})
+            if not ok:
+                raise rd.err(f"model.{section}.{k}", "a group name of the script's `groups`, a "
+                             "list of element tags, or {elements: [...], nodes: [...]}", v)
+        out[section] = {str(k): v for k, v in groups.items()}
+    if not out["stiffness_groups"] and not out["mass_groups"]:
+        raise rd.err("model.stiffness_groups", "at least one element group (an updating parameter)")
+    return ModelConfig(type="opensees", script=script, **out)
 
 
 def _parameters(rd, d):
@@ -328,12 +435,40 @@ def _damping(rd, d, n):
 
 
 def _excitation(rd, d):
-    rd.check_keys(d, "excitation", {"type", "floor"})
+    rd.check_keys(d, "excitation", {"type", "floor", "node", "dof", "direction"})
     kind = rd.choice(d, "type", "excitation.type", ("ground", "force"), "ground")
-    floor = None
-    if kind == "force":
-        floor = rd.number(d, "floor", "excitation.floor", required=True, positive=True, integer=True)
-    return ExcitationConfig(type=kind, floor=floor)
+    if kind == "ground":
+        if "floor" in d or "node" in d:
+            raise rd.err("excitation", "no floor or node for ground input (direction: ux, uy ...)")
+        return ExcitationConfig(type=kind, direction=_dof_spec(rd, d, "direction", "excitation"))
+    floor, node, dof = _location(rd, d, "excitation")
+    return ExcitationConfig(type=kind, floor=floor, node=node, dof=dof)
+
+
+def _dof_spec(rd, d, key, path):
+    """A DOF as given (number 1-6 or name ux..rz); checked against the model at assembly."""
+    v = d.get(key)
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, str)) or (isinstance(v, int) and not 1 <= v <= 6):
+        raise rd.err(f"{path}.{key}", "a DOF number 1-6 or a name (ux, uy, uz, rx, ry, rz)", v)
+    return v
+
+
+def _location(rd, d, path):
+    """(floor, node, dof): a floor (shear-frame shorthand, or a row of a matrix model)
+    or a node and DOF of an imported model."""
+    if "node" in d or "dof" in d:
+        if "floor" in d:
+            raise rd.err(f"{path}.floor", "either floor or node and dof, not both", d["floor"])
+        node = rd.number(d, "node", f"{path}.node", required=True, integer=True)
+        if d.get("dof") is None:
+            raise rd.err(f"{path}.dof", "a DOF number 1-6 or a name (ux, uy, uz, rx, ry, rz)")
+        return None, node, _dof_spec(rd, d, "dof", path)
+    if "floor" not in d:
+        raise rd.err(f"{path}.floor", "a floor number (required, 1-based), or node and dof")
+    return rd.number(d, "floor", f"{path}.floor", required=True, positive=True, integer=True), \
+        None, None
 
 
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
@@ -342,33 +477,45 @@ _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
-                              "validation_force_floor", "level_files"})
+                              "validation_force_floor", "level_files", "db_reference", "records",
+                              "columns", "skip_rows", "time_column", "fs", "screen"})
     kind = rd.choice(d, "type", "data.type", ("frf", "time_histories"), "frf")
     records = kind == "time_histories"
-    if "file" not in d:
+    rec_paths = _record_files(rd, d, base, records)
+    if "file" not in d and not rec_paths:
         raise rd.err("data.file", "the path of the measured data file (required)")
-    f = os.path.join(base, str(d["file"]))
+    f = os.path.join(base, str(d["file"])) if "file" in d else rec_paths[0]
     if not os.path.isfile(f):
         raise rd.err("data.file", "an existing file (relative to the case file)", d["file"])
+    if "file" in d and rec_paths:
+        raise rd.err("data.records", "either data.file or data.records, not both", d["records"])
     val = None
     if d.get("validation_file") is not None:
         val = os.path.join(base, str(d["validation_file"]))
         if not os.path.isfile(val):
             raise rd.err("data.validation_file", "an existing file", d["validation_file"])
-    fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db"), "auto")
+    fmt = rd.choice(d, "format", "data.format", ("auto", "npz", "complex", "magphase", "db",
+                                                 "magnitude", "db_magnitude"), "auto")
     unit = rd.number(d, "unit_factor", "data.unit_factor", 1.0, positive=True)
     inp = None
     if records:
         inp = rd.mapping(d, "data.input", required=True)
-        rd.check_keys(inp, "data.input", {"column", "quantity", "unit", "floor"})
+        rd.check_keys(inp, "data.input", {"column", "quantity", "unit", "floor", "from", "scale",
+                                          "sign"})
         q = rd.choice(inp, "quantity", "data.input.quantity", ("ground_acceleration", "force"), None)
-        if "column" not in inp:
-            raise rd.err("data.input.column", "the name of the input record's column")
+        src = None
+        if "from" in inp:
+            src = _force_from(rd, inp, q)
+        elif "column" not in inp:
+            raise rd.err("data.input.column", "the name of the input record's column (or, for a "
+                         "force, from: {column, mass, unit})")
         floor = None
         if q == "force":
             floor = rd.number(inp, "floor", "data.input.floor", required=True, positive=True,
                               integer=True)
-        inp = {"column": str(inp["column"]), "quantity": q, "unit": inp.get("unit"), "floor": floor}
+        scale, sign = _scale_sign(rd, inp, "data.input")
+        inp = {"column": None if src else str(inp["column"]), "quantity": q,
+               "unit": inp.get("unit"), "floor": floor, "from": src, "scale": scale, "sign": sign}
     chans = d.get("channels")
     if not isinstance(chans, list) or not chans:
         raise rd.err("data.channels", "a list of channels, each {name, floor, output, column}", chans)
@@ -378,27 +525,35 @@ def _data(rd, d, base):
         key = f"data.channels[{i}]"
         if not isinstance(c, dict):
             raise rd.err(key, "a mapping {name, floor, output, column}", c)
-        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit"})
+        rd.check_keys(c, key, {"name", "floor", "output", "column", "weight", "quantity", "unit",
+                               "node", "dof", "scale", "sign"})
         name = str(c.get("name", f"ch{i + 1}"))
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
-        floor = rd.number(c, "floor", f"{key}.floor", required=True, positive=True, integer=True)
+        floor, node, dof = _location(rd, c, key)
         w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         if records:
+            if node is not None:
+                raise rd.err(f"{key}.node", "a floor (time-history channels are floors of a "
+                             "shear frame)", node)
             q = rd.choice(c, "quantity", f"{key}.quantity",
                           ("acceleration", "displacement", "velocity"), None)
             ground = inp["quantity"] == "ground_acceleration"
             output = _QUANTITY_OUTPUT.get(q, "absolute_accelerance" if ground else "accelerance")
+            scale, sign = _scale_sign(rd, c, key)
             out.append(ChannelConfig(name=name, floor=floor, output=output,
                                      column=str(c.get("column", name)), weight=w, quantity=q,
-                                     unit=c.get("unit")))
+                                     unit=c.get("unit"), node=node, dof=dof, scale=scale,
+                                     sign=sign))
             continue
         output = rd.choice(c, "output", f"{key}.output", OUTPUTS, None)
         col = rd.number(c, "column", f"{key}.column", i, integer=True)
         if col < 0:
             raise rd.err(f"{key}.column", "a column index >= 0", col)
-        out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w))
+        scale, sign = _scale_sign(rd, c, key)
+        out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
+                                 node=node, dof=dof, scale=scale, sign=sign))
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):
@@ -408,20 +563,101 @@ def _data(rd, d, base):
         raise rd.err("data.overlap", "a fraction in [0, 1)", overlap)
     vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
                        positive=True, integer=True)
-    levels = d.get("level_files") or []
-    if not isinstance(levels, list) or not all(isinstance(x, str) for x in levels):
-        raise rd.err("data.level_files", "a list of file names", levels)
-    level_paths = []
-    for i, x in enumerate(levels):
-        lp = os.path.join(base, x)
-        if not os.path.isfile(lp):
-            raise rd.err(f"data.level_files[{i}]", "an existing file", x)
-        level_paths.append(lp)
+    level_paths = _file_list(rd, d.get("level_files") or [], "data.level_files", base)
+    dbref = rd.number(d, "db_reference", "data.db_reference", 1.0, positive=True)
+    if "db_reference" in d and fmt not in ("db", "db_magnitude"):
+        raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
+    layout = _text_layout(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),
                       validation_file=val,
-                      validation_force_floor=vfloor, level_files=tuple(level_paths))
+                      validation_force_floor=vfloor, level_files=tuple(level_paths),
+                      db_reference=dbref, records=tuple(rec_paths), **layout)
+
+
+def _record_files(rd, d, base, records):
+    """Absolute paths of data.records (several records of one test, averaged)."""
+    if "records" not in d:
+        return []
+    if not records:
+        raise rd.err("data.records", "records only with type: time_histories", d["records"])
+    if not d["records"]:
+        raise rd.err("data.records", "a non-empty list of record files", d["records"])
+    return _file_list(rd, d["records"], "data.records", base)
+
+
+def _file_list(rd, v, key, base):
+    """Absolute paths of a list of existing files named relative to the case file."""
+    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+        raise rd.err(key, "a list of file names (relative to the case file)", v)
+    out = []
+    for i, x in enumerate(v):
+        p = os.path.join(base, x)
+        if not os.path.isfile(p):
+            raise rd.err(f"{key}[{i}]", "an existing file (relative to the case file)", x)
+        out.append(p)
+    return out
+
+
+def _scale_sign(rd, d, key):
+    """Per-channel calibration: file value x scale x sign = value in the stated unit."""
+    scale = rd.number(d, "scale", f"{key}.scale", 1.0, positive=True)
+    sign = d.get("sign", 1)
+    if isinstance(sign, bool) or sign not in (1, -1):
+        raise rd.err(f"{key}.sign", "1 or -1", sign)
+    return scale, int(sign)
+
+
+def _force_from(rd, inp, quantity):
+    """data.input.from: a force known as mass x acceleration."""
+    if quantity != "force":
+        raise rd.err("data.input.from", "only with quantity: force", quantity)
+    src = rd.mapping(inp, "data.input.from")
+    rd.check_keys(src, "data.input.from", {"column", "mass", "unit"})
+    if "column" not in src:
+        raise rd.err("data.input.from.column", "the column of the measured acceleration")
+    if "column" in inp:
+        raise rd.err("data.input.column", "either column or from, not both", inp["column"])
+    mass = rd.number(src, "mass", "data.input.from.mass", required=True, positive=True)
+    if inp.get("unit") not in (None, "N"):
+        raise rd.err("data.input.unit", "no unit with from (the force is mass [kg] x "
+                     "acceleration; give the acceleration's unit as from.unit)", inp["unit"])
+    return {"column": str(src["column"]), "mass": mass, "unit": src.get("unit")}
+
+
+def _text_layout(rd, d, records):
+    """columns, skip_rows, time_column, fs and screen of the data section."""
+    out = {}
+    if not records:
+        for key in ("columns", "skip_rows", "time_column", "fs", "screen"):
+            if key in d:
+                raise rd.err(f"data.{key}", "only with type: time_histories", d[key])
+        return out
+    cols = d.get("columns")
+    if cols is not None:
+        if not isinstance(cols, list) or not cols or not all(isinstance(x, str) for x in cols) \
+                or len(set(cols)) != len(cols):
+            raise rd.err("data.columns", "a list of unique column names, in file order", cols)
+        out["columns"] = tuple(cols)
+    out["skip_rows"] = rd.number(d, "skip_rows", "data.skip_rows", 0, integer=True)
+    if out["skip_rows"] < 0:
+        raise rd.err("data.skip_rows", "an integer >= 0", out["skip_rows"])
+    if d.get("time_column") is not None:
+        out["time_column"] = str(d["time_column"])
+    out["fs"] = rd.number(d, "fs", "data.fs", None, positive=True)
+    sc = rd.mapping(d, "data.screen")
+    rd.check_keys(sc, "data.screen", {"remove", "spike_threshold", "dropout_min_samples"})
+    remove = sc.get("remove", False)
+    if not isinstance(remove, bool):
+        raise rd.err("data.screen.remove", "true or false", remove)
+    out["screen"] = ScreenConfig(
+        remove=remove,
+        spike_threshold=rd.number(sc, "spike_threshold", "data.screen.spike_threshold", 8.0,
+                                  positive=True),
+        dropout_min_samples=rd.number(sc, "dropout_min_samples", "data.screen.dropout_min_samples",
+                                      5, positive=True, integer=True))
+    return out
 
 
 def _updates_and_verification(rd, raw, cfg):
@@ -495,14 +731,26 @@ def _solver(rd, d):
 
 
 def _search(rd, d):
-    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers"})
+    rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers", "executor",
+                                "scheduler"})
     return SearchSection(
         starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
         trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
                                integer=True),
         seed=rd.number(d, "seed", "search.seed", 0, integer=True),
         workers=rd.number(d, "workers", "search.workers", 1, positive=True, integer=True),
+        executor=rd.choice(d, "executor", "search.executor", EXECUTORS, "local"),
+        scheduler=_scheduler(rd.err, d.get("scheduler"), "search.scheduler"),
     )
+
+
+def _scheduler(err, v, key):
+    """A Dask scheduler address (protocol://host:port) or None."""
+    if v is None:
+        return None
+    if not isinstance(v, str) or "://" not in v:
+        raise err(key, "a Dask scheduler address such as tcp://host:8786", v)
+    return v
 
 
 def _apply_overrides(cfg, ov, rd):
@@ -514,6 +762,15 @@ def _apply_overrides(cfg, ov, rd):
             if key != "seed" and v < 1:
                 raise InputError("<arguments>", f"--{key}", "an integer >= 1", v)
             search = replace(search, **{key: int(v)})
+    if ov.get("executor") is not None:
+        search = replace(search, executor=ov["executor"])
+    if ov.get("scheduler") is not None:
+        search = replace(search, scheduler=_scheduler(
+            lambda k, e, g: InputError("<arguments>", k, e, g), ov["scheduler"], "--scheduler"))
+    if search.scheduler is not None and search.executor != "dask":
+        raise InputError("<arguments>" if ov.get("scheduler") else rd.file, "--scheduler"
+                         if ov.get("scheduler") else "search.scheduler",
+                         "executor 'dask' with a scheduler (--executor dask)", search.executor)
     if ov.get("solver") is not None:
         if ov["solver"] not in SOLVERS:
             raise InputError("<arguments>", "--solver", f"one of {list(SOLVERS)}", ov["solver"])

@@ -1,6 +1,7 @@
 """Missing physics: locate the mismatch, name what the model left out, model it.
 
-``diagnose(cfg, out)`` runs, in order:
+``diagnose(cfg, out)`` runs, in order (after the set-up screening of nlp/screen.py,
+which stops with the verdict setup_error when the data contradict the case):
 
 1. the baseline update (the case's own model), with every residual divided by
    its noise level, so the objective is a chi-square;
@@ -403,6 +404,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     (the effect lives off the resonances).
     """
     case = assemble(cfg)
+    screening = _screen(case, out, log) if widen == 1 else None
+    if screening is not None and screening["verdict"] == "setup_error":
+        return screening
     fit = _windows(cfg, case, widen)
     held = np.setdiff1d(_windows(cfg, case, 3 * widen), fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
@@ -463,7 +467,28 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
     return _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed,
-                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin)
+                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin,
+                    screening=screening and screening["report"])
+
+
+def _screen(case, out, log):
+    """Screen the data before fitting (nlp/screen.py). A case that contradicts its data
+    gets the verdict setup_error, written to out/diagnosis.json; otherwise the screening
+    is returned for the diagnosis to carry."""
+    from .results import write_json
+    from .screen import screen, setup_error_result
+    report = screen(case)
+    for w in report["warnings"]:
+        log(f"screening: {w['message']}")
+    if not report["setup_errors"]:
+        return {"verdict": None, "report": report}
+    result = setup_error_result(report)
+    os.makedirs(out, exist_ok=True)
+    write_json(os.path.join(out, "diagnosis.json"), result)
+    log("verdict: setup_error (the data contradict the case; no physics is blamed)")
+    for e in report["setup_errors"]:
+        log(f"  set-up error: {e['message']}")
+    return result
 
 
 def _statement(r):
@@ -496,7 +521,7 @@ def _public(r):
 
 
 def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed, cells,
-             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin=None):
+             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin=None, screening=None):
     from .diagnose_plots import plot_diagnosis
     from .results import write_json
     suggestions = []
@@ -551,6 +576,8 @@ def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried,
               "fit": {"before": fit_before, "after": fit_after},
               "residual_map": {"before": cells, "after": cells_after},
               "suggested_measurements": suggestions}
+    if screening is not None:
+        result["screening"] = screening
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, cells, cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)

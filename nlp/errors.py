@@ -6,7 +6,7 @@ and exits with status 2, without a traceback. Programming errors stay ordinary
 exceptions.
 """
 
-__all__ = ["InputError"]
+__all__ = ["InputError", "SearchFailed"]
 
 
 class InputError(ValueError):
@@ -37,3 +37,7 @@ class InputError(ValueError):
                 text = text[:77] + "..."
             msg += f", got {text}"
         super().__init__(msg)
+
+
+class SearchFailed(RuntimeError):
+    """No local solve of the search converged; nothing is written (CLI exit status 3)."""

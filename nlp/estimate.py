@@ -13,7 +13,7 @@ from scipy import signal
 
 from nlp.errors import InputError
 
-__all__ = ["FRFEstimate", "ESTIMATORS", "estimate_frf"]
+__all__ = ["FRFEstimate", "ESTIMATORS", "estimate_frf", "hv_tls"]
 
 ESTIMATORS = ("H1", "H2", "Hv")
 
@@ -33,12 +33,16 @@ class FRFEstimate:
         Ordinary coherence ``|S_xy|^2 / (S_xx S_yy)``, in [0, 1].
     estimator : str
         ``"H1"``, ``"H2"`` or ``"Hv"``.
+    n_averages : int
+        Number of Welch segments averaged, over all records: the ``n_d`` of
+        the coherence-based noise of ``ln|H|`` (Bendat & Piersol).
     """
 
     f: np.ndarray
     H: np.ndarray
     coherence: np.ndarray
     estimator: str
+    n_averages: int = 1
 
 
 def _as_signals(x, y, source):
@@ -94,9 +98,32 @@ def _combine(s_xx, s_yy, s_xy, estimator):
         h2 = s_yy / np.conj(s_xy)  # S_yy / S_yx
         if estimator == "H2":
             return h2
-        # Hv: geometric mean of |H1| and |H2|, with the H1 phase (H1 and H2
-        # share the phase of S_xy for a single input, so this equals sqrt(H1 H2)).
-        return np.sqrt(np.abs(h1) * np.abs(h2)) * np.exp(1j * np.angle(h1))
+        return hv_tls(s_xx, s_yy, s_xy)
+
+
+def hv_tls(s_xx, s_yy, s_xy):
+    """Hv: the total-least-squares FRF of one input and one output.
+
+    Hv = -v_x / v_y for the eigenvector v of the smallest eigenvalue of
+    ``[[S_xx, S_xy], [S_yx, S_yy]]`` (the estimator pyFRF and the modal-testing
+    literature call Hv): it minimises ``E|Y - H X|^2 / (1 + |H|^2)``, so noise on
+    input and output weigh alike. Closed form of the 2 x 2 eigenproblem, from
+    whichever row avoids cancellation. Units as ``S_xy / S_xx``; unlike H1 and H2
+    the result depends on the relative scaling of x and y (both in SI here).
+    """
+    s_xx, s_yy, s_xy = np.broadcast_arrays(s_xx, s_yy, s_xy)
+    diff = np.real(s_xx - s_yy)
+    root = np.sqrt(diff ** 2 + 4 * np.abs(s_xy) ** 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        first = 2 * s_xy / (diff + root)              # row 1: (S_xx - lam) v_x + S_xy v_y = 0
+        second = (-diff + root) / (2 * np.conj(s_xy))  # row 2: S_yx v_x + (S_yy - lam) v_y = 0
+    return np.where(diff >= 0, first, second)
+
+
+def _segments(n, nperseg, noverlap):
+    """Welch segments scipy averages in a record of n samples."""
+    step = nperseg - (nperseg // 2 if noverlap is None else noverlap)
+    return (n - nperseg) // step + 1
 
 
 def estimate_frf(x, y, fs, estimator="H1", nperseg=None, noverlap=None, window="hann",
@@ -105,21 +132,21 @@ def estimate_frf(x, y, fs, estimator="H1", nperseg=None, noverlap=None, window="
 
     Parameters
     ----------
-    x : array_like, shape (N,)
-        Input record (ground acceleration [m/s^2] or force [N]).
-    y : array_like, shape (n_ch, N) or (N,)
+    x : array_like, shape (N,), or a list of such records
+        Input record (ground acceleration [m/s^2] or force [N]). A list holds
+        several records of one test: their Welch segments are averaged
+        together (H1 over all segments of all records).
+    y : array_like, shape (n_ch, N) or (N,), or a list matching ``x``
         Output records, same sampling as ``x``.
     fs : float
         Sampling frequency [Hz].
     estimator : {"H1", "H2", "Hv"}
         ``"H1"``: ``S_xy / S_xx`` (paper Eqn 20; unbiased by output noise).
         ``"H2"``: ``S_yy / S_yx`` (unbiased by input noise).
-        ``"Hv"``: ``sqrt(|H1| |H2|) exp(j angle(H1))``, the geometric mean of
-        the two magnitudes with the H1 phase (a simple stand-in for the
-        total-least-squares Hv; it lies between ``|H1|`` and ``|H2|``).
+        ``"Hv"``: total least squares (`hv_tls`), for noise on both.
     nperseg : int, optional
         Welch segment length [samples]. Default: the largest power of two not
-        above ``N / 8``.
+        above ``N / 8`` (N of the shortest record).
     noverlap : int, optional
         Overlap [samples]; default ``nperseg // 2`` (scipy's default).
     window, detrend :
@@ -130,7 +157,8 @@ def estimate_frf(x, y, fs, estimator="H1", nperseg=None, noverlap=None, window="
     Returns
     -------
     FRFEstimate
-        ``f`` [Hz] (0 to fs/2), ``H`` (n_ch, n_f), ``coherence`` (n_ch, n_f).
+        ``f`` [Hz] (0 to fs/2), ``H`` (n_ch, n_f), ``coherence`` (n_ch, n_f),
+        ``n_averages`` (segments averaged).
 
     Raises
     ------
@@ -142,13 +170,27 @@ def estimate_frf(x, y, fs, estimator="H1", nperseg=None, noverlap=None, window="
         raise InputError(source, "estimator", f"one of {', '.join(ESTIMATORS)}", got=estimator)
     if not (np.isscalar(fs) and np.isfinite(fs) and fs > 0):
         raise InputError(source, "fs", "a positive sampling frequency in Hz", got=fs)
-    x, y = _as_signals(x, y, source)
-    nperseg, noverlap = _check_segments(x.size, nperseg, noverlap, source)
+    several = isinstance(x, (list, tuple))
+    xs, ys = (list(x), list(y)) if several else ([x], [y])
+    if not xs or len(xs) != len(ys):
+        raise InputError(source, "records", "one output set per input record",
+                         got=f"{len(xs)} inputs, {len(ys)} outputs")
+    pairs = [_as_signals(xi, yi, source) for xi, yi in zip(xs, ys)]
+    if len({p[1].shape[0] for p in pairs}) > 1:
+        raise InputError(source, "records", "the same channels in every record")
+    nperseg, noverlap = _check_segments(min(p[0].size for p in pairs), nperseg, noverlap, source)
     kw = dict(fs=fs, window=window, nperseg=nperseg, noverlap=noverlap, detrend=detrend)
-    f, s_xx = signal.welch(x, **kw)
-    _, s_yy = signal.welch(y, axis=-1, **kw)
-    _, s_xy = signal.csd(x[np.newaxis, :], y, axis=-1, **kw)
+    s_xx = s_yy = s_xy = 0.0
+    n_avg = 0
+    for xi, yi in pairs:
+        # scipy averages the segments of one record; weight each record by its count
+        k = _segments(xi.size, nperseg, noverlap)
+        f, sxx = signal.welch(xi, **kw)
+        _, syy = signal.welch(yi, axis=-1, **kw)
+        _, sxy = signal.csd(xi[np.newaxis, :], yi, axis=-1, **kw)
+        s_xx, s_yy, s_xy, n_avg = s_xx + k * sxx, s_yy + k * syy, s_xy + k * sxy, n_avg + k
+    s_xx, s_yy, s_xy = s_xx / n_avg, s_yy / n_avg, s_xy / n_avg
     with np.errstate(divide="ignore", invalid="ignore"):
         coh = np.abs(s_xy) ** 2 / (s_xx * s_yy)
     return FRFEstimate(f=f, H=_combine(s_xx, s_yy, s_xy, estimator),
-                       coherence=np.clip(coh, 0.0, 1.0), estimator=estimator)
+                       coherence=np.clip(coh, 0.0, 1.0), estimator=estimator, n_averages=n_avg)

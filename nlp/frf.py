@@ -41,11 +41,14 @@ EXCITATIONS = ("ground", "force")
 _POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
-def load_vector(M, excitation="ground", force_dof=None):
-    """Load vector b of Mq'' + Cq' + Kq = b u (u = a_g or the force)."""
+def load_vector(M, excitation="ground", force_dof=None, r=None):
+    """Load vector b of Mq'' + Cq' + Kq = b u (u = a_g or the force).
+
+    r : (n,) influence vector of the ground motion (default all ones): b = -M r.
+    """
     n = M.shape[0]
     if excitation == "ground":
-        return -np.asarray(M) @ np.ones(n)
+        return -(M @ (np.ones(n) if r is None else np.asarray(r, float)))
     if excitation == "force":
         b = np.zeros(n)
         b[force_dof] = 1.0
@@ -117,10 +120,10 @@ def frf_state_space(M, C, K, omega, excitation="ground", force_dof=None, output=
 
 
 def frf_dynamic_stiffness(M, C, K, omega, excitation="ground", force_dof=None,
-                          output="receptance"):
-    """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b."""
+                          output="receptance", r=None):
+    """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b (r: ground influence)."""
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
-    b = load_vector(M, excitation, force_dof)
+    b = load_vector(M, excitation, force_dof, r)
     Z = K[None] - omega[:, None, None] ** 2 * M[None] + 1j * omega[:, None, None] * C[None]
     Hq = np.linalg.solve(Z, np.broadcast_to(b, (omega.size, b.size))[..., None])[..., 0].T
     return _apply_output(Hq, omega, output)
@@ -142,12 +145,16 @@ def modal_parameters(M, C, K):
     return np.abs(s) / (2 * np.pi), -s.real / np.abs(s), Phi
 
 
-def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None):
-    """FRF of each channel (objects with ``dof`` and ``output``): (n_ch, N) complex."""
+def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, r=None):
+    """FRF of each channel (objects with ``dof`` and ``output``): (n_ch, N) complex.
+
+    r : ground influence vector (default all ones).
+    """
     out = {}
     rows = []
     for ch in channels:
         if ch.output not in out:
-            out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output)
+            out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output,
+                                                   r)
         rows.append(out[ch.output][ch.dof])
     return np.array(rows)

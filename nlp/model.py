@@ -8,9 +8,10 @@ influence matrix K0_r (M0_r) is the nominal contribution of parameter r, so
 the updated physical value is nominal_r * (1 + alpha_r).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 __all__ = ["StructuralModel", "shear_frame", "shear_stiffness"]
 
@@ -32,6 +33,15 @@ class StructuralModel:
         ``nominal * (1 + relative change)``; 1.0 where there is none.
     dof_names : tuple of str
         Name of each degree of freedom (``floor1``...).
+    dofs : tuple of (int, int)
+        Node-to-DOF map of imported models (:mod:`nlp.importers`): the node tag
+        and 1-based DOF number (OpenSees numbering) of every row; empty for
+        shear frames, whose rows are floors.
+    ndm : int, optional
+        Spatial dimension of an imported model (2 or 3), for DOF names.
+
+    The matrices may be ``scipy.sparse`` (imported models); :meth:`dense`
+    gives a copy with ndarrays.
     """
 
     M0: np.ndarray
@@ -43,11 +53,29 @@ class StructuralModel:
     beta_nominal: np.ndarray
     alpha_nominal: np.ndarray
     dof_names: tuple = field(default=())
+    dofs: tuple = field(default=())
+    ndm: int = None
 
     @property
     def n(self):
         """Number of degrees of freedom."""
         return self.M0.shape[0]
+
+    @property
+    def is_sparse(self):
+        """True when the matrices are scipy.sparse."""
+        return sp.issparse(self.K0)
+
+    def dense(self):
+        """A copy whose matrices are dense ndarrays."""
+        if not self.is_sparse:
+            return self
+
+        def d(A):
+            return A.toarray() if sp.issparse(A) else np.asarray(A)
+
+        return replace(self, M0=d(self.M0), K0=d(self.K0), M_infl=tuple(d(A) for A in self.M_infl),
+                       K_infl=tuple(d(A) for A in self.K_infl))
 
     def matrices(self, alpha, beta):
         """Return (M, K) for relative changes alpha, beta (Eqns 23-24).

@@ -51,8 +51,12 @@ def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None):
     return np.array(fr), np.array(zr), np.array(phi).T.reshape(len(channels), len(fr))
 
 
-def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None):
-    """Peak-picked modes against the model's: one dict per measured mode."""
+def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None, phase=True):
+    """Peak-picked modes against the model's: one dict per measured mode.
+
+    ``phase=False`` (magnitude-only data): frequency and damping only; the
+    MAC needs the quadrature part of the FRFs, so it is None.
+    """
     f_x, z_x, phi_x = pick_modes(f, H, channels, detection, fmin, fmax)
     if f_x.size == 0:
         return []
@@ -62,7 +66,8 @@ def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None)
     rows = []
     for k in range(f_x.size):
         j = int(pair[k])
-        m = float(mac(Phi[dofs, j], phi_x[:, k])[0, 0]) if j >= 0 else float("nan")
+        m = None if not phase else \
+            float(mac(Phi[dofs, j], phi_x[:, k])[0, 0]) if j >= 0 else float("nan")
         rows.append({"f_measured_hz": float(f_x[k]), "zeta_measured": float(z_x[k]),
                      "f_model_hz": float(f_a[j]) if j >= 0 else None,
                      "zeta_model": float(z_a[j]) if j >= 0 else None,

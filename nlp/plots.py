@@ -39,8 +39,10 @@ def plot_frf_overlays(out_dir, case, initial, updated):
     keep = (case.f > 0) & (case.f <= hi)
     f = case.f[keep]
     w = 2 * np.pi * f
-    H0 = channel_frfs(initial[0], initial[2], initial[1], w, case.channels, tg.excitation, tg.force_dof)
-    H1 = channel_frfs(updated[0], updated[2], updated[1], w, case.channels, tg.excitation, tg.force_dof)
+    H0 = channel_frfs(initial[0], initial[2], initial[1], w, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
+    H1 = channel_frfs(updated[0], updated[2], updated[1], w, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
     Hx = case.H[:, keep]
     paths = []
     for c, ch in enumerate(case.channels):

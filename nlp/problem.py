@@ -65,7 +65,8 @@ class Target:
 
     omega : (N,) rad/s; H : (n_ch, N) complex; weight : (n_ch, N), 0 where a
     channel's point is not used; excitation ``"ground"`` or ``"force"`` with
-    ``force_dof`` (0-based).
+    ``force_dof`` (0-based); ``ground_r`` (n,) the influence vector of the
+    ground motion (1 on the DOFs it moves; None: every DOF, a shear frame).
     """
 
     omega: np.ndarray
@@ -74,6 +75,7 @@ class Target:
     channels: tuple
     excitation: str = "ground"
     force_dof: int = None
+    ground_r: np.ndarray = None
 
 
 @dataclass(frozen=True)
@@ -177,7 +179,9 @@ class UpdatingProblem:
         self.matrices_fn = ca.Function("matrices", [z], [M, K, C], ["z"], ["M", "K", "C"])
         Ma, Ka, Ca, Kh = (system[k] for k in ("M", "K", "C", "Kh"))
         if self.target.excitation == "ground":
-            b = -ca.mtimes(Ma, ca.DM.ones(Ma.shape[0]))
+            r = ca.DM.ones(Ma.shape[0]) if self.target.ground_r is None else \
+                ca.vertcat(ca.DM(self.target.ground_r), ca.DM.zeros(Ma.shape[0] - self.model.n))
+            b = -ca.mtimes(Ma, r)  # Eqn 16, with r for models with several DOFs per node
         else:
             b = ca.DM.zeros(Ma.shape[0])
             b[self.target.force_dof] = 1

@@ -5,6 +5,7 @@ UFF needs the optional ``pyuff`` package (``pip install "frf-nlp[uff]"``).
 """
 
 import csv
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -14,8 +15,9 @@ import scipy.io
 
 from nlp.errors import InputError
 
-__all__ = ["G", "UNITS", "QUANTITIES", "MAX_JITTER", "TimeHistories", "unit_factor",
-           "frf_unit_factor", "read_time_histories", "read_frf", "write_uff58"]
+__all__ = ["G", "UNITS", "QUANTITIES", "MAX_JITTER", "FRF_FORMATS", "MAGNITUDE_ONLY",
+           "TimeHistories", "unit_factor", "frf_unit_factor", "parse_complex",
+           "read_time_histories", "read_frf", "write_uff58"]
 
 G = 9.80665  # standard gravity [m/s^2]
 #: unit -> SI multiplier, per physical dimension (read-only)
@@ -32,7 +34,12 @@ QUANTITIES = MappingProxyType({"ground_acceleration": "acceleration",
                                "velocity": "velocity", "force": "force"})
 MAX_JITTER = 1e-6  # largest accepted |dt_k - dt| / dt
 _UFF_EXT = (".uff", ".unv")
+_TEXT_EXT = (".csv", ".txt", ".dat", ".asc", ".tsv")
 _TIME_NAMES = ("t", "time")
+_COMMENT = ("#", "%", "//", ";;")
+#: CSV/text FRF layouts; the last two carry no phase
+FRF_FORMATS = ("complex", "magphase", "db", "magnitude", "db_magnitude")
+MAGNITUDE_ONLY = ("magnitude", "db_magnitude")
 
 
 @dataclass(frozen=True)
@@ -132,27 +139,49 @@ def _csv_delimiter(line):
     return None  # whitespace
 
 
-def _load_csv_columns(path):
+def _data_lines(path, skip_rows=0):
+    """Non-empty lines after ``skip_rows``, without comment lines (#, %, //)."""
     with open(path, newline="") as fh:
-        header = fh.readline()
-    delim = _csv_delimiter(header)
-    names = [n.strip().strip('"') for n in (header.split(delim) if delim else header.split())]
+        lines = fh.read().splitlines()[skip_rows:]
+    return [ln for ln in lines if ln.strip() and not ln.lstrip().startswith(_COMMENT)]
+
+
+def _load_csv_columns(path, columns=None, skip_rows=0):
+    """Columns of a text table: named by its header line, or by ``columns``
+    when the file has no header (comment lines and ``skip_rows`` are skipped)."""
+    lines = _data_lines(path, skip_rows)
+    if not lines:
+        raise InputError(path, "rows", "at least one data row")
+    delim = _csv_delimiter(lines[0])
+    if columns is None:
+        header, lines = lines[0], lines[1:]
+        names = [n.strip().strip('"') for n in (header.split(delim) if delim else header.split())]
+    else:
+        names = [str(c) for c in columns]
     try:
-        arr = np.genfromtxt(path, delimiter=delim, skip_header=1, dtype=float, ndmin=2)
+        arr = np.genfromtxt(lines, delimiter=delim, dtype=float, ndmin=2)
     except ValueError as exc:
-        raise InputError(path, "rows", f"{len(names)} fields in every row, like the header",
+        raise InputError(path, "rows", f"{len(names)} fields in every row",
                          got=str(exc).splitlines()[-1]) from exc
+    if arr.size and np.isnan(arr[0]).all():
+        raise InputError(path, "columns", "numbers in every row when data.columns names the "
+                         "columns (a text line: comment it with #, or skip it with data.skip_rows)",
+                         got=lines[0][:60])
     if arr.shape[1] != len(names):
-        raise InputError(path, "header", f"one name per column ({arr.shape[1]} columns)",
+        what = "data.columns" if columns is not None else "header"
+        raise InputError(path, what, f"one name per column ({arr.shape[1]} columns)",
                          got=names)
     return {n: arr[:, i] for i, n in enumerate(names)}
 
 
-def _load_columns(path):
+def _load_columns(path, columns=None, skip_rows=0):
     """All named 1-D arrays of a file, keyed by column / array / record name."""
     ext = path.suffix.lower()
-    if ext in (".csv", ".txt"):
-        return _load_csv_columns(path)
+    if ext in _TEXT_EXT:
+        return _load_csv_columns(path, columns, skip_rows)
+    if columns is not None:
+        raise InputError(path, "columns", "column names only for a headerless text file "
+                         f"({', '.join(_TEXT_EXT)})", got=ext)
     try:
         if ext == ".npz":
             with np.load(path, allow_pickle=False) as z:
@@ -166,7 +195,8 @@ def _load_columns(path):
         cols = {r["id1"].strip(): np.asarray(r["data"], dtype=float) for r in recs}
         cols.setdefault("t", x)
         return cols
-    raise InputError(path, "format", "a .csv, .txt, .npz, .mat, .uff or .unv file", got=ext)
+    raise InputError(path, "format", "a .csv, .txt, .dat, .asc, .tsv, .npz, .mat, .uff or .unv "
+                     "file", got=ext)
 
 
 def _as_vector(path, key, value):
@@ -185,26 +215,68 @@ def _check_finite(path, key, v):
                          got=f"{v[bad][0]} at sample {int(np.argmax(bad))}")
 
 
+_SPEC_KEYS = {"column", "unit", "quantity", "scale", "sign", "from"}
+
+
 def _channel_spec(path, name, spec):
-    """(column, SI factor) of one entry of the channels mapping."""
+    """(column, SI factor, derived) of one entry of the channels mapping.
+
+    The factor is ``scale * sign * unit``; ``derived`` is None or, for
+    ``from: {column, mass, unit}``, the (column, factor) of the acceleration
+    whose product with the mass is the record (a force [N] = kg * m/s^2).
+    """
     if spec is None or isinstance(spec, str):
-        return spec or name, 1.0
-    if not isinstance(spec, dict) or set(spec) - {"column", "unit", "quantity"}:
-        raise InputError(path, f"channels.{name}", "None, a column name or a dict with keys "
-                         "column, unit, quantity", got=spec)
+        return spec or name, 1.0, None
+    key = f"channels.{name}"
+    if not isinstance(spec, dict) or set(spec) - _SPEC_KEYS:
+        raise InputError(path, key, "None, a column name or a dict with keys "
+                         + ", ".join(sorted(_SPEC_KEYS)), got=spec)
     quantity = spec.get("quantity", name if name in QUANTITIES else None)
     if quantity is not None and quantity not in QUANTITIES:
-        raise InputError(path, f"channels.{name}.quantity", f"one of {', '.join(QUANTITIES)}",
+        raise InputError(path, f"{key}.quantity", f"one of {', '.join(QUANTITIES)}",
                          got=quantity)
+    scale = spec.get("scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not np.isfinite(scale) \
+            or scale <= 0:
+        raise InputError(path, f"{key}.scale", "a positive calibration factor (file value x "
+                         "scale = value in the unit; use sign: -1 for a flip)", got=scale)
+    sign = spec.get("sign", 1)
+    if sign not in (1, -1) or isinstance(sign, bool):
+        raise InputError(path, f"{key}.sign", "1 or -1", got=sign)
+    factor = float(scale) * sign
+    src = spec.get("from")
+    if src is not None:
+        # force known as mass x acceleration (inertial shaker, active mass damper)
+        if quantity != "force":
+            raise InputError(path, f"{key}.from", "only for a force: quantity force", got=quantity)
+        if not isinstance(src, dict) or set(src) - {"column", "mass", "unit"} \
+                or "column" not in src or "mass" not in src:
+            raise InputError(path, f"{key}.from", "{column: acceleration column, mass: kg, "
+                             "unit: acceleration unit}", got=src)
+        mass = src["mass"]
+        if isinstance(mass, bool) or not isinstance(mass, (int, float)) or not mass > 0:
+            raise InputError(path, f"{key}.from.mass", "a mass in kg > 0", got=mass)
+        if spec.get("unit") not in (None, "N"):
+            raise InputError(path, f"{key}.unit", "no unit with from: (the force is in N; give "
+                             "the acceleration's unit in from.unit)", got=spec["unit"])
+        acc = 1.0 if src.get("unit") is None else unit_factor(
+            src["unit"], "acceleration", file=path, key=f"{key}.from.unit")
+        return None, factor, (str(src["column"]), float(mass) * acc)
     unit = spec.get("unit")
-    factor = 1.0 if unit is None else unit_factor(unit, quantity, file=path,
-                                                  key=f"channels.{name}.unit")
-    return spec.get("column") or name, factor
+    if unit is not None:
+        factor *= unit_factor(unit, quantity, file=path, key=f"{key}.unit")
+    return spec.get("column") or name, factor, None
 
 
-def _time_axis(path, cols, n, fs):
+def _time_axis(path, cols, n, fs, time_column=None):
     """Time vector [s] and sampling frequency [Hz], checked for even sampling."""
-    tkey = next((k for k in cols if k.lower() in _TIME_NAMES), None)
+    if time_column is not None:
+        if time_column not in cols:
+            raise InputError(path, "time_column", f"a column of the file ({', '.join(cols)})",
+                             got=time_column)
+        tkey = time_column
+    else:
+        tkey = next((k for k in cols if k.lower() in _TIME_NAMES), None)
     if tkey is not None:
         t = _as_vector(path, tkey, cols[tkey])
         if t.size != n:
@@ -213,8 +285,8 @@ def _time_axis(path, cols, n, fs):
     else:
         fs = np.ravel(cols["fs"]) if "fs" in cols else fs
         if fs is None:
-            raise InputError(path, "t", "a time column 't' or 'time', an 'fs' entry, or the fs "
-                             "argument")
+            raise InputError(path, "t", "a time column 't' or 'time', data.time_column naming "
+                             "it, an 'fs' entry, or data.fs (sampling rate in Hz)")
         if np.size(fs) != 1 or not np.issubdtype(np.asarray(fs).dtype, np.number) or not fs > 0:
             raise InputError(path, "fs", "one positive sampling frequency in Hz", got=fs)
         return np.arange(n) / float(np.ravel(fs)[0]), float(np.ravel(fs)[0])
@@ -233,6 +305,9 @@ def _time_axis(path, cols, n, fs):
         raise InputError(path, tkey, f"even sampling (relative step jitter < {MAX_JITTER:g} "
                          "beyond the time stamps' rounding)",
                          got=f"jitter {jitter:.3g} at sample {int(np.argmax(np.abs(steps - dt)))}")
+    if fs is not None and abs(fs * dt - 1) > 1e-6 + 2 * res / dt:
+        raise InputError(path, "fs", f"the sampling rate of the time column '{tkey}' "
+                         f"({1 / dt:.6g} Hz), or no fs", got=fs)
     return t[0] + dt * np.arange(n), 1.0 / dt
 
 
@@ -246,25 +321,38 @@ def _resolution(t):
     return 0.0
 
 
-def read_time_histories(path, channels, fs=None):
+def read_time_histories(path, channels, fs=None, *, columns=None, time_column=None,
+                        skip_rows=0):
     """Read channel records and convert them to SI units.
 
     Parameters
     ----------
     path : str or path-like
-        ``.csv``/``.txt`` (header row, time column ``t`` or ``time``), ``.npz``
-        or ``.mat`` (arrays named like the columns, plus ``t`` or ``fs``),
-        ``.uff``/``.unv`` (dataset-58 time records; column = ID line 1).
+        Text (``.csv``, ``.txt``, ``.dat``, ``.asc``, ``.tsv``: a header row,
+        or none with ``columns``; lines starting with ``#``, ``%`` or ``//``
+        are comments), ``.npz`` or ``.mat`` (arrays named like the columns,
+        plus ``t`` or ``fs``), ``.uff``/``.unv`` (dataset-58 time records;
+        column = ID line 1).
     channels : dict
         ``name -> spec`` where spec is None (column named like the channel),
-        a column name, or a dict ``{"column": str, "unit": str, "quantity":
-        str}`` (all optional; the quantity defaults to the channel name when
-        it is one of `QUANTITIES`, the unit to SI). Quantities:
-        ground_acceleration, acceleration (absolute), displacement and
-        velocity (relative to the ground), force.
+        a column name, or a dict with optional keys ``column``, ``unit``,
+        ``quantity``, ``scale`` (calibration: file value x scale = value in
+        ``unit``, e.g. 1/sensitivity for volts), ``sign`` (1 or -1) and, for a
+        force known as mass x acceleration, ``from: {column, mass [kg],
+        unit}``: the record is ``sign * scale * mass * acceleration`` [N].
+        The quantity defaults to the channel name when it is one of
+        `QUANTITIES`, the unit to SI. Quantities: ground_acceleration,
+        acceleration (absolute), displacement and velocity (relative to the
+        ground), force.
     fs : float, optional
-        Sampling frequency [Hz], used only if the file has neither a time
-        column nor an ``fs`` entry.
+        Sampling frequency [Hz] when the file has no time column (checked
+        against the time column when it has one).
+    columns : sequence of str, optional
+        Names of the columns of a headerless text file, in order.
+    time_column : str, optional
+        Name of the time column [s] (default: ``t`` or ``time`` if present).
+    skip_rows : int, optional
+        Leading lines of a text file to skip (an instrument's preamble).
 
     Returns
     -------
@@ -273,10 +361,12 @@ def read_time_histories(path, channels, fs=None):
     path = _existing(path)
     if not channels:
         raise InputError(path, "channels", "at least one channel")
-    cols = _load_columns(path)
+    cols = _load_columns(path, columns, skip_rows)
     data, n, first = {}, None, None
     for name, spec in channels.items():
-        column, factor = _channel_spec(path, name, spec)
+        column, factor, derived = _channel_spec(path, name, spec)
+        if derived is not None:
+            column, factor = derived[0], factor * derived[1]
         if column not in cols:
             avail = ", ".join(k for k in cols if k.lower() not in _TIME_NAMES + ("fs",))
             raise InputError(path, f"channels.{name}",
@@ -288,14 +378,26 @@ def read_time_histories(path, channels, fs=None):
             raise InputError(path, column, f"{n} samples like '{first}'", got=v.size)
         _check_finite(path, column, v)
         data[name] = v * factor
-    t, fs_ = _time_axis(path, cols, n, fs)
+    t, fs_ = _time_axis(path, cols, n, fs, time_column)
     return TimeHistories(t=t, fs=fs_, data=data)
 
 
+_MATLAB_I = re.compile(r"(?<=[0-9.])[iI](?![A-Za-z0-9])")
+
+
+def parse_complex(token):
+    """A complex number written by Python (``1+2j``) or MATLAB (``1+2i``,
+    ``1.0 + 2.0i``); raises ValueError otherwise."""
+    return complex(_MATLAB_I.sub("j", token.replace(" ", "")))
+
+
+parse_complex.__name__ = "complex"  # named so in 'expected ... numbers' messages
+
+
 def _parse_table(path, delimiter, conv):
-    """Rows of a headerless (or one-header-line) numeric CSV as a 2-D array."""
-    with open(path, newline="") as fh:
-        lines = [ln for ln in fh.read().splitlines() if ln.strip()]
+    """Rows of a headerless (or one-header-line) numeric CSV as a 2-D array;
+    comment lines (#, %, //) are skipped."""
+    lines = _data_lines(path)
     if not lines:
         raise InputError(path, "rows", "at least one data row")
     delim = delimiter or _csv_delimiter(lines[0])
@@ -308,8 +410,9 @@ def _parse_table(path, delimiter, conv):
         except ValueError as exc:
             if i == 0:
                 continue  # a header line
-            raise InputError(path, f"line {i + 1}", f"{conv.__name__} numbers",
-                             got=",".join(row)) from exc
+            what = ("complex numbers, Python (1+2j) or MATLAB (1+2i)" if conv is parse_complex
+                    else f"{conv.__name__} numbers")
+            raise InputError(path, f"data line {i + 1}", what, got=",".join(row)) from exc
         if len(out[-1]) != len(out[0]):
             raise InputError(path, f"line {i + 1}", f"{len(out[0])} fields like the first row",
                              got=len(out[-1]))
@@ -318,22 +421,32 @@ def _parse_table(path, delimiter, conv):
     return np.array(out)
 
 
-def _frf_from_csv(path, fmt, delimiter):
+def _frf_from_csv(path, fmt, delimiter, db_reference):
     if fmt == "complex":
-        tab = _parse_table(path, delimiter, complex)
+        tab = _parse_table(path, delimiter, parse_complex)
         if np.any(np.abs(tab[:, 0].imag) > 1e-12 * np.abs(tab[:, 0].real).max()):
             raise InputError(path, "column 0", "real frequencies in Hz (imaginary part 0)")
         return tab[:, 0].real, tab[:, 1:].T
     tab = _parse_table(path, delimiter, float)
+    if fmt in MAGNITUDE_ONLY:
+        if tab.shape[1] < 2:
+            raise InputError(path, "columns", "frequency then one magnitude column per channel",
+                             got=f"{tab.shape[1]} columns")
+        vals = tab[:, 1:].T
+        mag = vals if fmt == "magnitude" else db_reference * 10.0 ** (vals / 20.0)
+        if np.any(mag < 0):
+            raise InputError(path, "magnitude", "magnitudes >= 0 (no phase in this format)")
+        return tab[:, 0], mag.astype(complex)
     if tab.shape[1] < 3 or (tab.shape[1] - 1) % 2:
         what = "magnitude" if fmt == "magphase" else "dB"
-        raise InputError(path, "columns", f"frequency then ({what}, phase_deg) pairs",
+        raise InputError(path, "columns", f"frequency then ({what}, phase_deg) pairs (for "
+                         "magnitude-only files: format magnitude or db_magnitude)",
                          got=f"{tab.shape[1]} columns")
-    mag = tab[:, 1::2].T if fmt == "magphase" else 10.0 ** (tab[:, 1::2].T / 20.0)
+    mag = tab[:, 1::2].T if fmt == "magphase" else db_reference * 10.0 ** (tab[:, 1::2].T / 20.0)
     return tab[:, 0], mag * np.exp(1j * np.deg2rad(tab[:, 2::2].T))
 
 
-def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None):
+def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None, db_reference=1.0):
     """Read measured FRFs.
 
     Parameters
@@ -341,11 +454,16 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None):
     path : str or path-like
         ``.csv``/``.txt``, ``.npz`` (arrays ``f`` [Hz] and ``H`` (n_ch, n_f))
         or ``.uff``/``.unv`` (dataset-58 FRF records, function type 4).
-    fmt : {"complex", "magphase", "db"}
-        CSV layout, first column frequency [Hz], no header needed:
-        ``"complex"``: Python complex literals (``0.5+0.1j``) per channel;
+    fmt : {"complex", "magphase", "db", "magnitude", "db_magnitude"}
+        CSV layout, first column frequency [Hz], no header needed (one
+        header line and comment lines starting with #, % or // are skipped):
+        ``"complex"``: complex numbers per channel, Python (``0.5+0.1j``) or
+        MATLAB (``0.5+0.1i``);
         ``"magphase"``: (magnitude, phase [deg]) pairs per channel;
-        ``"db"``: (20 log10 magnitude, phase [deg]) pairs per channel.
+        ``"db"``: (dB, phase [deg]) pairs per channel;
+        ``"magnitude"``: one magnitude column per channel, no phase;
+        ``"db_magnitude"``: one dB column per channel, no phase.
+        Magnitude-only FRFs come back as real, non-negative ``H``.
         Delimiter ``;``, ``,``, tab or whitespace (detected).
     columns : sequence of int, optional
         0-based channel indices to keep (channel 0 is the first FRF, not the
@@ -355,6 +473,9 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None):
     unit : str, optional
         FRF unit in the file (see `frf_unit_factor`), to convert to SI;
         default: values as stored.
+    db_reference : float, optional
+        The magnitude that 0 dB stands for, in the file's FRF unit:
+        ``|H| = db_reference * 10^(dB / 20)``; default 1.
 
     Returns
     -------
@@ -365,10 +486,13 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None):
     """
     path = _existing(path)
     ext = path.suffix.lower()
-    if ext in (".csv", ".txt"):
-        if fmt not in ("complex", "magphase", "db"):
-            raise InputError(path, "fmt", "one of complex, magphase, db", got=fmt)
-        f, H = _frf_from_csv(path, fmt, delimiter)
+    if ext in _TEXT_EXT:
+        if fmt not in FRF_FORMATS:
+            raise InputError(path, "fmt", f"one of {', '.join(FRF_FORMATS)}", got=fmt)
+        if not (np.isfinite(db_reference) and db_reference > 0):
+            raise InputError(path, "db_reference", "a positive magnitude for 0 dB",
+                             got=db_reference)
+        f, H = _frf_from_csv(path, fmt, delimiter, db_reference)
     elif ext == ".npz":
         with np.load(path, allow_pickle=False) as z:
             missing = [k for k in ("f", "H") if k not in z.files]
@@ -380,7 +504,8 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None):
         f, recs = _read_uff58(path, 4)
         H = np.array([np.asarray(r["data"], dtype=complex) for r in recs])
     else:
-        raise InputError(path, "format", "a .csv, .txt, .npz, .uff or .unv file", got=ext)
+        raise InputError(path, "format", "a .csv, .txt, .dat, .asc, .tsv, .npz, .uff or .unv "
+                         "file", got=ext)
     if f.ndim != 1 or H.ndim != 2 or H.shape[1] != f.size or H.shape[0] == 0:
         raise InputError(path, "H", f"FRFs shaped (n_channels, {f.size})", got=f"shape {H.shape}")
     if not np.all(np.isfinite(f)) or np.any(np.diff(f) <= 0):

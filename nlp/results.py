@@ -81,8 +81,10 @@ def summarize(case, problem, search):
     M0, K0, C0 = problem.matrices(params.z0)
     M, K, C = problem.matrices(z_best)
     tg = case.target
-    Ha0 = channel_frfs(M0, C0, K0, tg.omega, case.channels, tg.excitation, tg.force_dof)
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha0 = channel_frfs(M0, C0, K0, tg.omega, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation,
+                      tg.force_dof, tg.ground_r)
     cfg = case.config
     return {
         "case": cfg.name, "case_file": cfg.path,
@@ -110,9 +112,12 @@ def summarize(case, problem, search):
                    "starts_requested": search.n_requested, "starts_finished": len(search.results),
                    "interrupted": search.interrupted, "seconds": search.seconds,
                    "starts_within_1pct_of_best": len(near),
-                   "starts": [{"index": i, "f": r.f, "success": r.success, "status": r.status,
+                   "starts_resumed": search.resumed,
+                   # success: converged (only those compete); f is null for a failed solve
+                   "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
+                               "success": r.success, "status": r.status,
                                "iterations": r.iterations, "seconds": r.seconds}
-                              for i, r in enumerate(search.results)]},
+                              for i, r in zip(search.indices, search.results)]},
     }
 
 

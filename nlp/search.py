@@ -5,37 +5,55 @@ that is compiled once: trial points come from a scrambled Sobol sequence over
 the box bounds (seeded), each is scored by one objective evaluation, and local
 solves start from the best-scoring points that are mutually distant (so the
 starts do not all fall into one basin). The case's initial point is always
-start 0. Local solves run in worker processes; the answer depends only on the
-seed, not on the number of workers or the order in which starts finish.
+start 0.
+
+Local solves run on an executor (:mod:`nlp.executors`); each start's result
+comes back as soon as it finishes and is appended to the checkpoint
+(:mod:`nlp.checkpoint`). Only converged solves compete for the best (IPOPT
+``Solve_Succeeded`` or ``Solved_To_Acceptable_Level``, sqpmethod success, with
+a finite objective and point); the lowest objective wins, ties go to the
+lowest start index, so the answer depends only on the seed, not on the
+executor, the number of workers or the order in which starts finish.
 """
 
-from dataclasses import dataclass
-import multiprocessing as mp
+from collections import Counter
+from dataclasses import dataclass, replace
 import os
 import sys
 import time
 
 import numpy as np
+from scipy.spatial.distance import cdist
 from scipy.stats import qmc
 
-__all__ = ["SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search"]
+from .errors import SearchFailed
+from .executors import Setup, interrupts_as_keyboard, make_executor
+
+__all__ = ["SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search",
+           "start_points", "converged", "solve_start", "default_workers"]
+
+IPOPT_CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
 
 @dataclass(frozen=True)
 class SearchConfig:
     """starts: local solves; trial_factor: trial points per start; seed; workers;
-    min_distance: minimum distance between starts in the unit box (0..sqrt(n))."""
+    min_distance: minimum distance between starts in the unit box (0..sqrt(n));
+    executor: ``local``, ``dask`` or ``serial``; scheduler: a Dask scheduler address."""
 
     starts: int = 20
     trial_factor: int = 10
     seed: int = 0
     workers: int = 1
     min_distance: float = 0.1
+    executor: str = "local"
+    scheduler: str = None
 
 
 @dataclass
 class SearchResult:
-    """All finished local solves, the best one and a summary of agreement."""
+    """The finished local solves (ordered by start index), the best converged one
+    and a summary of agreement."""
 
     results: list
     best: object
@@ -44,12 +62,19 @@ class SearchResult:
     interrupted: bool
     seconds: float
     rel_tol: float = 0.01
+    indices: list = None
+    resumed: int = 0
+
+    def __post_init__(self):
+        if self.indices is None:
+            self.indices = list(range(len(self.results)))
 
     @property
     def near_best(self):
-        """Local results whose objective is within rel_tol (1 %) of the best."""
+        """Converged results whose objective is within rel_tol (1 %) of the best."""
         fb = self.best.f
-        return [r for r in self.results if r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
+        return [r for r in self.results
+                if r.success and r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
 
     def spread(self, to_theta):
         """Min, max and std of each theta over the near-best starts."""
@@ -65,33 +90,101 @@ def trial_points(lo, hi, n, seed):
     return lo + U * (hi - lo)
 
 
+def _too_close(U, cand, chosen, d):
+    """For each row of U[cand]: is it closer than d to any row of U[chosen]?"""
+    close = np.zeros(len(cand), dtype=bool)
+    for k in range(0, len(chosen), 4096):  # bounded memory: len(cand) x 4096 distances
+        close |= cdist(U[cand], U[chosen[k:k + 4096]]).min(axis=1) < d
+    return close
+
+
 def pick_starts(Z, scores, n, lo, hi, min_distance):
     """Indices of the best-scoring rows of Z, each at least min_distance apart
-    (in box-normalised coordinates); fills up with the next best if needed."""
+    (in box-normalised coordinates); fills up with the next best if needed.
+
+    Greedy in score order, as one would write it point by point, but done in
+    blocks: a block of the next-best candidates is first screened against all
+    starts chosen so far (one distance matrix), then the survivors are taken in
+    order against each other. The picks are those of the point-by-point rule.
+    """
     U = (Z - lo) / np.where(hi > lo, hi - lo, 1.0)
-    order = np.argsort(np.where(np.isfinite(scores), scores, np.inf), kind="stable")
-    chosen = []
-    for i in order:
-        if len(chosen) == n:
-            break
-        if not np.isfinite(scores[i]):
-            break
-        if all(np.linalg.norm(U[i] - U[j]) >= min_distance for j in chosen):
-            chosen.append(i)
-    for i in order:  # not enough distant points: take the next best
-        if len(chosen) == n:
-            break
-        if i not in chosen:
-            chosen.append(i)
-    return np.array(chosen, dtype=int)
+    s = np.where(np.isfinite(scores), scores, np.inf)
+    order = np.argsort(s, kind="stable")
+    ranked = order[np.isfinite(s[order])]
+    chosen = np.empty(0, dtype=int)
+    pos = 0
+    while len(chosen) < n and pos < len(ranked):
+        block = ranked[pos:pos + int(np.clip(n - len(chosen), 256, 2048))]
+        pos += len(block)
+        if len(chosen):
+            block = block[~_too_close(U, block, chosen, min_distance)]
+        D = cdist(U[block], U[block])
+        alive = np.ones(len(block), dtype=bool)
+        take = []
+        for j in range(len(block)):
+            if len(chosen) + len(take) == n:
+                break
+            if alive[j]:
+                take.append(j)
+                alive[j + 1:] &= D[j, j + 1:] >= min_distance
+        chosen = np.concatenate([chosen, block[take]])
+    if len(chosen) < n:  # not enough distant points: take the next best
+        rest = order[~np.isin(order, chosen)]
+        chosen = np.concatenate([chosen, rest[:n - len(chosen)]])
+    return chosen.astype(int)
 
 
-_PROBLEM = None  # set in the parent before forking the workers
+def start_points(problem, config):
+    """The start points (rows) and the number of trial points scored.
+
+    Start 0 is the case's initial point; the others are picked from the
+    seeded trial points, so the same problem and seed give the same starts.
+    """
+    lo, hi = problem.bounds
+    n_starts = max(1, int(config.starts))
+    starts = [np.clip(problem.z0, lo, hi)]
+    n_trial = 0
+    if n_starts > 1:
+        n_trial = max(n_starts - 1, config.trial_factor * n_starts)
+        Z = trial_points(lo, hi, n_trial, config.seed)
+        with np.errstate(all="ignore"):
+            scores = problem.objective_batch(Z.T)
+        idx = pick_starts(Z, scores, n_starts - 1, lo, hi, config.min_distance)
+        starts += [Z[i] for i in idx]
+    return np.array(starts), n_trial
 
 
-def _solve_start(item):
-    i, z0 = item
-    return i, _PROBLEM.solve(z0)
+def converged(problem, res):
+    """Did a local solve converge to a finite point (the only ones that may win)?"""
+    if not (np.isfinite(res.f) and np.all(np.isfinite(res.z))):
+        return False
+    if problem.solver_config.name == "ipopt":
+        return res.status in IPOPT_CONVERGED
+    return bool(res.success)
+
+
+def solve_start(problem, z0):
+    """One local solve that never raises: a failure is a result with f = inf.
+
+    ``success`` of the returned result means :func:`converged`.
+    """
+    from .problem import LocalResult
+
+    t0 = time.perf_counter()
+    try:
+        res = problem.solve(z0)
+    except Exception as exc:  # a failed start must not end the search
+        msg = " ".join(str(exc).split())[:200]
+        return LocalResult(z=np.asarray(z0, float), f=np.inf, success=False,
+                           status=f"error: {type(exc).__name__}: {msg}", iterations=0,
+                           seconds=time.perf_counter() - t0, z0=np.asarray(z0, float))
+    ok = converged(problem, res)
+    f = res.f if np.isfinite(res.f) and np.all(np.isfinite(res.z)) else np.inf
+    return replace(res, success=ok, f=float(f))
+
+
+def _solve_item(problem, item):
+    return solve_start(problem, item)
 
 
 def _progress(done, total, best_f, stream):
@@ -105,65 +198,86 @@ def _progress(done, total, best_f, stream):
     stream.flush()
 
 
-def scatter_search(problem, config=SearchConfig(), progress=None):
+def _failure_summary(results):
+    counts = Counter(r.status for r in results)
+    return ", ".join(f"{n} {s}" for s, n in counts.most_common(5))
+
+
+def scatter_search(problem, config=SearchConfig(), progress=None, executor=None, setup=None,
+                   checkpoint=None):
     """Run the scatter search on an :class:`nlp.problem.UpdatingProblem`.
 
+    Parameters
+    ----------
     progress : a text stream for a progress bar (default: stderr when it is a
-    terminal). Ctrl-C stops the search and returns the starts that finished
-    (``interrupted=True``).
+        terminal).
+    executor : an :class:`nlp.executors.Executor`; default: one made from
+        ``config`` (executor, workers, scheduler) and closed at the end.
+    setup : an :class:`nlp.executors.Setup` that rebuilds ``problem`` in another
+        process (needed by Dask; forked local workers inherit ``problem``).
+    checkpoint : an :class:`nlp.checkpoint.Checkpoint`; every finished start is
+        appended to it, and the starts it already holds (``resume``) are not
+        solved again.
+
+    SIGINT and SIGTERM stop the search within a second or two and return the
+    starts that finished (``interrupted=True``); KeyboardInterrupt is raised
+    only when none of them converged. :class:`nlp.errors.SearchFailed` is
+    raised when the search finished and no start converged.
     """
-    global _PROBLEM
     if progress is None:
         progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
-    lo, hi = problem.bounds
-    n_starts = max(1, int(config.starts))
-    starts = [np.clip(problem.z0, lo, hi)]
-    n_trial = 0
-    if n_starts > 1:
-        n_trial = max(n_starts - 1, config.trial_factor * n_starts)
-        Z = trial_points(lo, hi, n_trial, config.seed)
-        with np.errstate(all="ignore"):
-            scores = problem.objective_batch(Z.T)
-        idx = pick_starts(Z, scores, n_starts - 1, lo, hi, config.min_distance)
-        starts += [Z[i] for i in idx]
-    items = list(enumerate(starts))
-    results = {}
-    best_f = np.inf
+    starts, n_trial = start_points(problem, config)
+    results = checkpoint.open(problem, config, starts) if checkpoint is not None else {}
+    resumed = len(results)
+    todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
+    best_f = min([r.f for r in results.values() if r.success] or [np.inf])
     interrupted = False
-    _PROBLEM = problem
-    workers = max(1, min(int(config.workers), len(items)))
-    pool = None
-    try:
-        if workers == 1:
-            iterator = map(_solve_start, items)
-        else:
-            ctx = mp.get_context("fork")
-            pool = ctx.Pool(workers)
-            iterator = pool.imap_unordered(_solve_start, items, chunksize=max(1, len(items) // (8 * workers)))
-        for i, res in iterator:
-            results[i] = res
-            best_f = min(best_f, res.f)
-            _progress(len(results), len(items), best_f, progress)
-    except KeyboardInterrupt:
-        interrupted = True
-        if progress is not None:
-            progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
-    finally:
-        if pool is not None:
-            pool.terminate()
-            pool.join()
-        _PROBLEM = None
-    if not results:
-        raise KeyboardInterrupt("interrupted before any local solve finished")
-    ordered = [results[i] for i in sorted(results)]
-    # The lowest objective wins even if its solver stopped on an iteration limit:
-    # every f is a true evaluation at a point inside the bounds, and a slow
-    # crawl along a weakly identified valley must not lose to a worse "success".
-    finite = [r for r in ordered if np.isfinite(r.f)] or ordered
-    best = min(finite, key=lambda r: r.f)  # min keeps the lowest start index on ties
-    return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(items),
-                        interrupted=interrupted, seconds=time.perf_counter() - t0)
+    own = executor is None
+    setup = setup or Setup(value=problem)
+    stream = None
+    with interrupts_as_keyboard() as guard:
+        try:
+            if own:
+                executor = make_executor(config.executor, config.workers, config.scheduler)
+            stream = executor.stream(setup, _solve_item, todo)
+            for i, res in stream:
+                with guard.deferred():  # a received start is always recorded
+                    results[i] = res
+                    if checkpoint is not None:
+                        checkpoint.append(i, res)
+                    if res.success:
+                        best_f = min(best_f, res.f)
+                    _progress(len(results), len(starts), best_f, progress)
+        except KeyboardInterrupt:
+            interrupted = True
+            with guard.deferred(swallow=True):
+                for i, res in (stream.stop() if stream is not None else []):
+                    results.setdefault(i, res)
+                    if checkpoint is not None:
+                        checkpoint.append(i, res)
+                if progress is not None:
+                    progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
+        finally:
+            with guard.deferred(swallow=True):
+                if stream is not None:
+                    stream.close()
+                if own and executor is not None:
+                    executor.close()
+                if checkpoint is not None:
+                    checkpoint.close()
+    indices = sorted(results)
+    ordered = [results[i] for i in indices]
+    good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
+    if not good:
+        if interrupted:
+            raise KeyboardInterrupt("interrupted before any local solve converged")
+        raise SearchFailed(f"none of the {len(ordered)} local solves converged "
+                           f"({_failure_summary(ordered)})")
+    best = results[min(good)[1]]  # lowest f; the lowest start index on ties
+    return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
+                        interrupted=interrupted, seconds=time.perf_counter() - t0,
+                        indices=indices, resumed=resumed)
 
 
 def default_workers():

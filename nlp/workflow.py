@@ -9,11 +9,13 @@ measured input replayed in the time domain when the data are records.
 
 from dataclasses import replace
 import os
+import shutil
 import time
 
 import numpy as np
 
 from .case import _detection_form, assemble, build_problem
+from .checkpoint import Checkpoint, checkpoint_path
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
 from .freqsel import plot_selection
@@ -22,13 +24,14 @@ from .peakpick import compare_modes
 from .plots import plot_frf_overlays
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
+from .executors import Setup
 from .search import SearchConfig, scatter_search
 from .verify import plot_replay, replay
 
 __all__ = ["run"]
 
 
-def _update(cfg, label, channels, out, log):
+def _update(cfg, label, channels, out, log, checkpoint=None):
     case = assemble(cfg, channels=channels)
     tag = f"[{label}] " if label else ""
     log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
@@ -41,7 +44,11 @@ def _update(cfg, label, channels, out, log):
         f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
     s = cfg.search
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                  seed=s.seed, workers=s.workers))
+                                                  seed=s.seed, workers=s.workers,
+                                                  executor=s.executor, scheduler=s.scheduler),
+                            setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
+    if search.resumed:
+        log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
     result = summarize(case, problem, search)
     os.makedirs(out, exist_ok=True)
     write_json(os.path.join(out, "result.json"), result)
@@ -76,10 +83,13 @@ def _fdac_of(model, case):
     """FDAC per channel, FDAC overall and FRAC per channel of a model against a case's data."""
     M, K, C = model
     tg = case.target
-    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof)
+    Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation, tg.force_dof,
+                      tg.ground_r)
     names = [c.name for c in case.channels]
+    # FRAC compares complex FRFs: magnitude-only data have no phase to compare
+    fr = frac(Ha, tg.H).tolist() if case.has_phase else [None] * len(names)
     return (dict(zip(names, fdac(Ha, tg.H).tolist())), float(fdac_overall(Ha, tg.H)),
-            dict(zip(names, frac(Ha, tg.H).tolist())))
+            dict(zip(names, fr)))
 
 
 def _modes_of(model, case):
@@ -88,7 +98,18 @@ def _modes_of(model, case):
     fc = case.config.frequencies
     det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
-                         fmin=fc.fmin, fmax=fc.fmax)
+                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase)
+
+
+def _log_quality(q, log):
+    """One line per screened channel with spikes or dropouts."""
+    if not q["channels"]:
+        log("records screened: no spikes or dropouts")
+    for ch, c in q["channels"].items():
+        log(f"records: {ch}: {c['spikes']} spikes, {c['dropouts']} dropouts "
+            f"({100 * c['fraction_flagged']:.2g} % of samples)"
+            + (", replaced by interpolation" if q["removed"] else
+               " (data.screen.remove: true replaces them by interpolation)"))
 
 
 def _table1(results, average):
@@ -105,14 +126,19 @@ def _table1(results, average):
     return "\n".join(lines) + "\n"
 
 
-def run(cfg, out, log=print):
-    """Run a validated case into folder ``out``; returns the exit status (0 or 130)."""
+def run(cfg, out, log=print, resume=False):
+    """Run a validated case into folder ``out``; returns the exit status (0 or 130).
+
+    Every finished start is kept in ``out.partial/`` (:mod:`nlp.checkpoint`);
+    ``resume`` continues from it, and a completed run removes it.
+    """
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
-        case, result, interrupted = _update(cfg, label, channels, d, log)
+        ckpt = Checkpoint(checkpoint_path(out, label), resume=resume)
+        case, result, interrupted = _update(cfg, label, channels, d, log, ckpt)
         results[label] = (case, result)
         if interrupted:
             break
@@ -131,6 +157,11 @@ def run(cfg, out, log=print):
         summary["fdac_overall"][label or "all"] = overall
         summary["frac"].update(fr)
         summary["modes"][label or "all"] = _modes_of(model, case)
+        if case.quality is not None:
+            summary["data_quality"] = case.quality.to_dict()
+    if not cfg.data.has_phase:
+        summary["needs_phase"] = {"metrics": ["FRAC", "MAC"], "reason": f"data.format "
+                                  f"{cfg.data.format} has no phase; FDAC compares magnitudes"}
     if len(results) > 1:
         avg = {}
         for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
@@ -142,8 +173,10 @@ def run(cfg, out, log=print):
     log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
     for label, rows in summary["modes"].items():
         log(f"measured modes ({label}, peak picking) vs model: " + "; ".join(
-            f"{r['f_measured_hz']:.3f} Hz {100 * r['frequency_error']:+.2f} %, MAC {r['mac']:.3f}"
-            for r in rows))
+            f"{r['f_measured_hz']:.3f} Hz {100 * r['frequency_error']:+.2f} %, "
+            + ("MAC needs phase" if r["mac"] is None else f"MAC {r['mac']:.3f}") for r in rows))
+    if "data_quality" in summary:
+        _log_quality(summary["data_quality"], log)
     if cfg.data.validation_file:
         vcfg = cfg
         if cfg.data.validation_force_floor is not None:
@@ -175,4 +208,9 @@ def run(cfg, out, log=print):
     write_json(os.path.join(out, "summary.json"), summary)
     path = write_report(out)
     log(f"wrote {out}: summary.json, result.json, parameters.csv, figures, {os.path.basename(path)}")
-    return 130 if interrupted else 0
+    if interrupted:
+        log(f"interrupted: finished starts are kept in {os.path.dirname(checkpoint_path(out))}; "
+            "continue with --resume")
+        return 130
+    shutil.rmtree(os.path.dirname(checkpoint_path(out)), ignore_errors=True)
+    return 0

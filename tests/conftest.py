@@ -35,6 +35,22 @@ def random_system(n, rng):
     return M, C, K
 
 
+def pytest_addoption(parser):
+    parser.addoption(
+        "--slow", action="store_true", default=False,
+        help="also run the tests marked @pytest.mark.slow (CI does; the default run skips them)")
+
+
+def pytest_collection_modifyitems(config, items):
+    # The default run is the fast set; `--slow` (CI) or an explicit `-m` expression runs the rest.
+    if config.getoption("--slow") or config.getoption("markexpr"):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item.get_closest_marker("slow") is None]
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -31,6 +31,7 @@ def _run(tmp_path, spec, seed):
     return diagnose(load_case(folder + "/case.yaml"), str(tmp_path / "out"), log=lambda *_: None)
 
 
+@pytest.mark.slow  # 20-50 s per family: a full diagnosis each
 @pytest.mark.parametrize("family,effect,location", CASES, ids=[c[0] for c in CASES])
 def test_family_found_at_its_location(tmp_path, family, effect, location):
     res = _run(tmp_path, {"excitation": "ground", "family": family, **effect}, seed=11)
@@ -44,6 +45,7 @@ def test_family_found_at_its_location(tmp_path, family, effect, location):
     assert saved["verdict"] == res["verdict"] and saved["findings"][0]["statement"]
 
 
+@pytest.mark.slow  # 25-40 s each: a full diagnosis
 @pytest.mark.parametrize("ordinary,levels", [(False, 2), (True, 1)],
                          ids=["null_two_levels", "ordinary_change"])
 def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):

@@ -135,3 +135,52 @@ def test_bad_input(kwargs, key):
     with pytest.raises(InputError, match=key) as info:
         estimate_frf(**args)
     assert info.value.file == "<data>"
+
+
+def _tls_by_definition(s_xx, s_yy, s_xy):
+    """Hv at each frequency: -v_x / v_y of the eigenvector of the smallest
+    eigenvalue of [[S_xx, S_xy], [S_yx, S_yy]] (numpy's eigh, not the closed form)."""
+    out = np.empty(s_xy.shape, complex)
+    for i in range(s_xy.size):
+        G = np.array([[s_xx[i], s_xy[i]], [np.conj(s_xy[i]), s_yy[i]]])
+        _, V = np.linalg.eigh(G)
+        out[i] = -V[0, 0] / V[1, 0]
+    return out
+
+
+def test_hv_is_the_total_least_squares_solution_with_noise_on_input_and_output():
+    """FIR system y = 0.8 x[n] + 0.5 x[n-1], white noise of equal variance on x and y:
+    H1 is biased low by S_xx / (S_xx + S_nn), H2 high; Hv equals the TLS eigenvector
+    solution and is unbiased for equal noise."""
+    rng = np.random.default_rng(7)
+    n, fs, nper = 2**17, 100.0, 256
+    u = rng.normal(size=n)
+    v = 0.8 * u + 0.5 * np.concatenate([[0.0], u[:-1]])
+    x = u + 0.5 * rng.normal(size=n)
+    y = v + 0.5 * rng.normal(size=n)
+    est = estimate_frf(x, y, fs, estimator="Hv", nperseg=nper)
+    kw = dict(fs=fs, nperseg=nper)
+    _, s_xx = signal.welch(x, **kw)
+    _, s_yy = signal.welch(y, **kw)
+    _, s_xy = signal.csd(x, y, **kw)
+    np.testing.assert_allclose(est.H[0], _tls_by_definition(s_xx, s_yy, s_xy), rtol=1e-10)
+    w = 2 * np.pi * est.f / fs
+    true = 0.8 + 0.5 * np.exp(-1j * w)
+    h1 = estimate_frf(x, y, fs, estimator="H1", nperseg=nper).H[0]
+    inner = slice(5, -5)
+    assert np.median(np.abs(est.H[0, inner] / true[inner] - 1)) < 0.03
+    assert np.median(np.abs(h1[inner]) / np.abs(true[inner])) == pytest.approx(0.8, abs=0.03)
+    assert est.n_averages == (n - nper) // (nper // 2) + 1
+
+
+def test_records_average_all_segments_like_one_long_record(records):
+    """With no overlap, splitting a record at a segment boundary into two records
+    must give the same averaged spectra, hence the same FRF, coherence and count."""
+    x, y = records
+    nper = 1024
+    one = estimate_frf(x[:8 * nper], y[:, :8 * nper], FS, nperseg=nper, noverlap=0)
+    two = estimate_frf([x[:3 * nper], x[3 * nper:8 * nper]],
+                       [y[:, :3 * nper], y[:, 3 * nper:8 * nper]], FS, nperseg=nper, noverlap=0)
+    assert one.n_averages == two.n_averages == 8
+    np.testing.assert_allclose(two.H, one.H, rtol=1e-10)
+    np.testing.assert_allclose(two.coherence, one.coherence, rtol=1e-10, atol=1e-14)

@@ -45,17 +45,17 @@ def test_same_seed_same_answer_any_workers(problem):
 
 
 def test_interrupted_search_keeps_finished_starts(problem, monkeypatch):
-    real = search_mod._solve_start
+    real = search_mod._solve_item
     calls = []
 
-    def flaky(item):
-        calls.append(item[0])
+    def flaky(problem, z0):
+        calls.append(z0)
         if len(calls) == 3:
             raise KeyboardInterrupt
-        return real(item)
+        return real(problem, z0)
 
-    monkeypatch.setattr(search_mod, "_solve_start", flaky)
-    res = scatter_search(problem, SearchConfig(starts=5, workers=1))
+    monkeypatch.setattr(search_mod, "_solve_item", flaky)
+    res = scatter_search(problem, SearchConfig(starts=5, workers=1, executor="serial"))
     assert res.interrupted and len(res.results) == 2 and res.best is not None
 
 
