@@ -13,6 +13,7 @@ from .identify import SCALE_EXPLANATION, scale_null_space
 from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
+from .frf import BASE_DOF
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
 from .noise import noise_model
@@ -75,7 +76,10 @@ def _dof_index(cfg, model, key, floor, node, dof):
     if node is None:
         if floor > n:
             raise InputError(cfg.path, f"{key}.floor", f"a floor (DOF) number from 1 to {n}", floor)
-        return floor - 1
+        if floor == 0 and (cfg.excitation.type != "ground" or model.dofs):
+            raise InputError(cfg.path, f"{key}.floor", "a floor from 1 to n: a sensor on the base "
+                             "(floor 0) needs ground excitation of a floor model", floor)
+        return BASE_DOF if floor == 0 else floor - 1
     if not model.dofs:
         raise InputError(cfg.path, f"{key}.node", "a floor: this model has no node-to-DOF map "
                          "(model.dof_map, or an OpenSees script)", node)
@@ -300,6 +304,12 @@ def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
     """Half-power selection on the detection form; sigma: std of ln|H| (n_ch, n_f), so
     that a peak must stand out of the noise (carried over to the detection form)."""
     fc = cfg.frequencies
+    # a base sensor sees the modes only through a flexible base: peaks are looked for
+    # on the structure's channels
+    rows = [c for c, ch in enumerate(channels) if ch.dof != BASE_DOF] or list(range(len(channels)))
+    channels, H = [channels[c] for c in rows], H[rows]
+    coherence = None if coherence is None else coherence[rows]
+    sigma = None if sigma is None else sigma[rows]
     det = _detection_form(f, H, channels, excitation)
     if sigma is not None:
         jw = 2j * np.pi * f
@@ -354,7 +364,8 @@ def assemble(cfg, channels=None, data_file=None):
         if c.output == "absolute_accelerance" and ex.type != "ground":
             raise InputError(cfg.path, f"{key}.output", "receptance, mobility or accelerance "
                              "(absolute_accelerance needs ground excitation)", c.output)
-        if c.output == "absolute_accelerance" and ground_r is not None and ground_r[dof] != 1:
+        if c.output == "absolute_accelerance" and ground_r is not None and dof != BASE_DOF \
+                and ground_r[dof] != 1:
             raise InputError(cfg.path, f"{key}.output", "a relative output (receptance, mobility, "
                              "accelerance): absolute_accelerance needs a DOF along the ground "
                              "motion", c.output)

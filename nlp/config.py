@@ -455,9 +455,9 @@ def _dof_spec(rd, d, key, path):
     return v
 
 
-def _location(rd, d, path):
+def _location(rd, d, path, base=False):
     """(floor, node, dof): a floor (shear-frame shorthand, or a row of a matrix model)
-    or a node and DOF of an imported model."""
+    or a node and DOF of an imported model; base: floor 0 (the base) is allowed."""
     if "node" in d or "dof" in d:
         if "floor" in d:
             raise rd.err(f"{path}.floor", "either floor or node and dof, not both", d["floor"])
@@ -467,8 +467,11 @@ def _location(rd, d, path):
         return None, node, _dof_spec(rd, d, "dof", path)
     if "floor" not in d:
         raise rd.err(f"{path}.floor", "a floor number (required, 1-based), or node and dof")
-    return rd.number(d, "floor", f"{path}.floor", required=True, positive=True, integer=True), \
-        None, None
+    floor = rd.number(d, "floor", f"{path}.floor", required=True, integer=True)
+    if floor < (0 if base else 1):
+        raise rd.err(f"{path}.floor", "a floor number >= 1" + (" (0: a sensor on the base)" if base
+                                                                else ""), floor)
+    return floor, None, None
 
 
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
@@ -531,7 +534,7 @@ def _data(rd, d, base):
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
-        floor, node, dof = _location(rd, c, key)
+        floor, node, dof = _location(rd, c, key, base=True)
         w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         if records:
             if node is not None:
@@ -554,6 +557,14 @@ def _data(rd, d, base):
         scale, sign = _scale_sign(rd, c, key)
         out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
                                  node=node, dof=dof, scale=scale, sign=sign))
+    for i, c in enumerate(out):
+        # the base moves only with the ground: a fixed-base model predicts the input
+        # itself there, a flexible base (diagnose) the base DOF's absolute motion
+        if c.floor == 0 and c.output != "absolute_accelerance":
+            raise rd.err(f"data.channels[{i}].floor", "a floor >= 1; floor 0 (a sensor on the "
+                         "base) is an absolute acceleration under ground excitation "
+                         "(records: quantity acceleration with a ground_acceleration input; "
+                         "FRF files: output absolute_accelerance)", 0)
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):

@@ -296,18 +296,19 @@ def _from_records(case):
     """Transient (one segment) or Welch route for a case made from time histories."""
     d, rec = case.config.data, case.records
     names = [c.name for c in case.channels]
-    x = rec.data["__input__"] if "__input__" in rec.data else None
+    x = rec.data["__input__"]
     y = np.array([rec.data[nm] for nm in names])
     n = rec.t.size
     nperseg = n if d.nperseg == "all" else d.nperseg
     if nperseg is None:
         nperseg = int(2 ** np.floor(np.log2(max(n // 8, 1))))
-    noverlap = int(d.overlap * nperseg)
-    # the count from the segmenting itself, with the overlap correction
+    noverlap = 0 if d.nperseg == "all" else int(d.overlap * nperseg)
+    # segments of one record, and the overlap correction of their count
     n_d, n_eff = welch_averages(n, nperseg, noverlap, d.window)
+    n_total = int(getattr(case, "n_averages", None) or n_d)   # all records (the estimator's)
     mask = rest_mask(x, y, rec.fs)
     s_n = None if mask is None else rest_noise_psd(np.vstack([x, y]), rec.fs, mask, case.f)
-    if n_d == 1:
+    if n_total == 1:
         if s_n is None:
             s, sp = local_scatter(case.f, case.H)
             return NoiseModel(s, sp, "scatter", 1.0)
@@ -317,17 +318,20 @@ def _from_records(case):
         var = var_ln_transient(p_xx, p_yy, s_n[0], s_n[1:])
         s = np.maximum(np.sqrt(var), _FLOOR)
         return NoiseModel(s, s.copy(), "transient", 1.0)
+    n_eff = n_total * n_eff / n_d
     var = var_ln_welch(case.coherence, n_eff)
-    # the resolution bias at sharp peaks is an error of the estimate as well
-    var = var + resolution_bias(case.H, kernel_moment(d.window, nperseg)) ** 2
-    if s_n is not None:
+    if d.nperseg != "all":
+        # the resolution bias at sharp peaks is an error of the estimate as well
+        # (a whole transient per segment has no leakage)
+        var = var + resolution_bias(case.H, kernel_moment(d.window, nperseg)) ** 2
+    if s_n is not None and d.estimator == "H1":
         # H1 is biased low by ln(1 + S_nx / S_uu) (input noise); count it as error
         kw = dict(fs=rec.fs, window=d.window, nperseg=nperseg, noverlap=noverlap)
-        _, s_xx = signal.welch(x, **kw)
+        f_w, s_xx = signal.welch(x, **kw)
+        s_xx = np.interp(case.f, f_w, s_xx)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.clip(s_n[0] / np.maximum(s_xx - s_n[0], 1e-300), 0, None)
-        if d.estimator == "H1":
-            var = np.minimum(var + np.log1p(ratio)[None, :] ** 2, VAR_LN_MAX)
+        var = np.minimum(var + np.log1p(ratio)[None, :] ** 2, VAR_LN_MAX)
     s = np.maximum(np.sqrt(var), _FLOOR)
     return NoiseModel(s, s.copy(), "welch", n_eff)
 
@@ -343,7 +347,7 @@ def noise_model(case):
     if case.records is not None and "__input__" in case.records.data:
         return _from_records(case)
     if case.coherence is not None:
-        n_eff = float(getattr(case, "n_averages", None) or 1.0)
+        n_eff = float(getattr(case, "n_averages", None) or 1.0)   # as the file states
         if n_eff > 1:
             s = np.maximum(np.sqrt(var_ln_welch(case.coherence, n_eff)), _FLOOR)
             return NoiseModel(s, s.copy(), "frf_coherence", n_eff)

@@ -127,3 +127,51 @@ def test_welch_overlap_correction():
     assert n_eff == pytest.approx(19 / (1 + 2 * (1 - 1 / 19) / 36), rel=1e-3)
     assert noise.welch_averages(4096, 1024, 0, "hann") == (4, 4.0)
     assert noise.kernel_moment("hann", 4096) == pytest.approx(1 / 3, rel=1e-4)
+
+
+def test_frf_file_with_coherence_null_case(tmp_path):
+    """An .npz FRF file with its coherence and averaging count: H1 simulated here
+    by averaging independent noisy blocks (complex Gaussian input and noise on
+    input and outputs), fitted with the coherence route."""
+    rng = np.random.default_rng(5)
+    M, C, K = sf.frame()
+    f = np.arange(0.5, 12.0, 0.01)
+    H = sf.frf_exact(M, C, K, f)
+    n_avg, nx, ny = 30, 0.05, 0.3
+
+    def cgauss(*shape):
+        return (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / math.sqrt(2)
+
+    U = cgauss(n_avg, f.size)
+    X = U + nx * cgauss(n_avg, f.size)
+    Y = H[None] * U[:, None] + ny * np.abs(H).mean(axis=1)[None, :, None] * cgauss(n_avg, 3, f.size)
+    s_xx = np.mean(np.abs(X) ** 2, axis=0)
+    s_xy = np.mean(np.conj(X)[:, None] * Y, axis=0)
+    s_yy = np.mean(np.abs(Y) ** 2, axis=0)
+    np.savez(tmp_path / "frf.npz", f=f, H=s_xy / s_xx, coherence=np.abs(s_xy) ** 2 / (s_xx * s_yy),
+             n_averages=n_avg)
+    data = {"file": "frf.npz", "channels": [{"name": f"a{i + 1}", "floor": i + 1,
+                                             "output": "absolute_accelerance", "column": i}
+                                            for i in range(3)]}
+    chi2, model, _ = _reduced_chi2(_case_yaml(tmp_path, data))
+    assert model.route == "frf_coherence" and model.n_averages == n_avg
+    assert 0.8 <= chi2 <= 1.3, chi2
+
+
+def test_chirp_noise_above_last_mode_is_not_a_mode(tmp_path):
+    """fmax at the top of the excitation band (20 Hz), last mode at 7.4 Hz: the
+    half-power selection keeps the three modes only."""
+    rng = np.random.default_rng(6)
+    M, C, K = sf.frame()
+    x, y = sf.simulate(sf.chirp_input(FS_FINE, 0.5, 20.0, 60, 5, 20), FS_FINE, M, C, K)
+    x, y = sf.add_noise(x, y, 0.02, rng)
+    path = _records_case(tmp_path, x, y, {"nperseg": "all"})
+    raw = yaml.safe_load(open(path))
+    raw["frequencies"]["fmax"] = 20.0
+    yaml.safe_dump(raw, open(path, "w"))
+    case = assemble(load_case(path))
+    modes = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real)) / (2 * np.pi)
+    f_sel = case.f[case.selected]
+    near = np.min(np.abs(f_sel[:, None] - modes[None, :]) / modes[None, :], axis=1)
+    assert near.max() < 0.1, f_sel[near >= 0.1]
+    assert all(np.any(np.abs(f_sel - fr) < 0.01 * fr) for fr in modes)
