@@ -83,6 +83,8 @@ def update_record(cfg, path):
     campaign.
     """
     from .case import assemble, build_problem
+    from .errors import SearchFailed
+    from .executors import make_executor
     from .results import summarize
     from .search import SearchConfig, scatter_search
 
@@ -92,15 +94,17 @@ def update_record(cfg, path):
         case = assemble(cfg, data_file=path)
         problem = build_problem(case)
         s = cfg.search
-        search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                      seed=s.seed, workers=1), progress=io.StringIO())
-        best = search.best
-        if best is None or not best.success or not np.isfinite(best.f):
-            row["status"] = f"no converged solve ({getattr(best, 'status', 'none')})"
-            return row
+        # the record is already one task of the batch's executor: its starts run here
+        with make_executor("serial") as ex:
+            search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
+                                                          seed=s.seed, workers=1),
+                                    progress=io.StringIO(), executor=ex)
         res = summarize(case, problem, search)
     except InputError as exc:
         row["status"] = f"input error: {exc}"
+        return row
+    except SearchFailed as exc:
+        row["status"] = f"no converged solve: {exc}"
         return row
     row["status"] = "ok"
     row["objective"] = float(res["objective"]["updated"])
@@ -146,30 +150,21 @@ def _csv(rows, names, X, S):
     return "\n".join(lines) + "\n"
 
 
-def _map_records(fn, cfg, paths, workers, log):
-    """Yield (path, row) as records finish, in worker processes when workers > 1."""
-    if workers <= 1 or len(paths) <= 1:
-        for p in paths:
-            yield p, fn(cfg, p)
-        return
-    import concurrent.futures as cf
-    import multiprocessing as mp
-
-    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
-    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as ex:
-        futs = {ex.submit(fn, cfg, p): p for p in paths}
-        try:
-            for fut in cf.as_completed(futs):
-                yield futs[fut], fut.result()
-        except BaseException:
-            for fut in futs:
-                fut.cancel()
-            raise
+def _update_task(cfg, path):
+    return update_record(cfg, path)
 
 
-def run_batch(cfg, record_paths, out, workers=1, resume=False, window=None, threshold=6.0,
-              log=print):
-    """Update ``cfg``'s model from every record into folder ``out``; returns 0 or 130."""
+def _config(cfg):
+    return cfg
+
+
+def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, log=print):
+    """Update ``cfg``'s model from every record into folder ``out``; returns 0 or 130.
+
+    Records run on the case's executor (``search.executor``, ``workers``,
+    ``scheduler``): each record is one task, its starts run inside that task.
+    """
+    from .executors import Setup, interrupts_as_keyboard, make_executor
     from .batch_report import plot_trend, write_batch_report
     from .changes import detect_changes
     from .results import _jsonable, write_atomic, write_json
@@ -187,22 +182,33 @@ def run_batch(cfg, record_paths, out, workers=1, resume=False, window=None, thre
     elif os.path.exists(done_file):
         os.unlink(done_file)
     todo = [p for p in record_paths if p not in done]
+    s = cfg.search
     log(f"batch {cfg.name}: {len(record_paths)} records ({len(done)} already done), "
-        f"{workers} worker(s)")
+        f"executor {s.executor}, {s.workers} worker(s)")
     t0 = time.perf_counter()
     interrupted = False
-    try:
-        with open(done_file, "a") as fh:
-            for k, (p, row) in enumerate(_map_records(update_record, cfg, todo, workers, log), 1):
-                done[p] = row
-                fh.write(json.dumps(row, default=_jsonable) + "\n")
-                fh.flush()
-                log(f"  [{k + len(record_paths) - len(todo)}/{len(record_paths)}] {row['record']}: "
-                    f"{row['status']}" + (f", objective {row['objective']:.4g}"
-                                          if "objective" in row else ""))
-    except KeyboardInterrupt:
-        interrupted = True
-        log("batch interrupted: finished records are kept in records.jsonl; rerun with --resume")
+
+    def keep(p, row, fh):
+        done[p] = row
+        fh.write(json.dumps(row, default=_jsonable) + "\n")
+        fh.flush()
+        log(f"  [{len(done)}/{len(record_paths)}] {row['record']}: {row['status']}"
+            + (f", objective {row['objective']:.4g}" if "objective" in row else ""))
+
+    with open(done_file, "a") as fh, interrupts_as_keyboard(), \
+            make_executor(s.executor, workers=s.workers, scheduler=s.scheduler) as ex:
+        stream = ex.stream(Setup(_config, cfg, value=cfg), _update_task, [(p, p) for p in todo],
+                           batch_size=1)
+        try:
+            for p, row in stream:
+                keep(p, row, fh)
+        except KeyboardInterrupt:
+            interrupted = True
+            for p, row in stream.stop():
+                keep(p, row, fh)
+            log("batch interrupted: finished records are kept in records.jsonl; rerun with --resume")
+        finally:
+            stream.close()
     rows = [done[p] for p in record_paths if p in done]
     names, X, S = history_table(rows)
     N = len(rows)

@@ -1,14 +1,23 @@
 """Assemble a validated case file into model, parameters, data and the NLP."""
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
 
-from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .damping import (DashpotDamping, GeneralDamping, ModalDamping, ModalGeneralDamping,
+                      RayleighDamping, band_modes, rayleigh_from_ratios)
+from .checks import (check_coherence, check_data_points, check_free_parameters,
+                     check_frf_alive, check_model_matrices, check_points_inside,
+                     check_record_alive, check_start_residuals, check_total_mass)
+from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
+from .frf_backends import choose as choose_backend
+from .frf_backends import reduced
+from .frf_backends.sparse import SparseFRF
+from .frf_backends.system import LinearSystem
 from .identify import SCALE_EXPLANATION, scale_null_space
 from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
@@ -52,7 +61,13 @@ def _load_model(cfg):
     if m.type == "shear_frame":
         return shear_frame(m.masses, m.stiffnesses)
     model = load_model(m, cfg.path)
-    return model.dense() if model.n <= DENSE_MAX else model
+    if model.n > DENSE_MAX:
+        return model
+    model = model.dense()
+    # symmetric M0, K0 and groups, M0 PD, K0 PSD: named by the model file
+    src = m.file or m.script or (m.K.get("file") if isinstance(m.K, dict) else m.K) or cfg.path
+    check_model_matrices(src, model.M0, model.K0, model.M_infl, model.K_infl)
+    return model
 
 
 def _groups_cover(model):
@@ -111,13 +126,25 @@ def _ground_r(cfg, model):
     return ground_influence(model.dofs, d)
 
 
-def _damping(cfg, model):
+def _damping(cfg, model, f_max=None):
     d = cfg.damping
     M0, K0 = model.M0, model.K0
     if d.a0 is not None:
         a0, a1 = d.a0, d.a1
+    elif d.model in ("modal_general", "dashpots") or model.n > 400:
+        a0, a1 = _rayleigh_band(cfg, model, f_max)
     else:
         a0, a1 = rayleigh_from_ratios(M0, K0, d.zeta)
+    if d.model == "modal_general":
+        modes = d.modes or _band_mode_numbers(model, f_max)
+        z0 = d.modal_zeta or (d.zeta,) * len(modes)
+        if len(z0) != len(modes):
+            raise InputError(cfg.path, "damping.modal_zeta", f"{len(modes)} ratios, one per mode "
+                             f"in damping.modes {list(modes)}", list(z0))
+        return ModalGeneralDamping.from_model(M0, K0, modes, z0, a0, a1)
+    if d.model == "dashpots":
+        return DashpotDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3,
+                              K_groups=tuple(model.K_infl), group_names=tuple(model.alpha_names))
     if d.model == "rayleigh":
         return RayleighDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3)
     if d.model == "modal":
@@ -130,37 +157,83 @@ def _damping(cfg, model):
     return GeneralDamping(C0=C0)
 
 
+def _band_mode_numbers(model, f_max):
+    """1-based numbers of the nominal modes below 1.1 f_max (at least one)."""
+    omega, _ = band_modes(model.M0, model.K0, min(model.n, 30))
+    k = int(np.sum(omega / (2 * np.pi) <= 1.1 * f_max)) if f_max else omega.size
+    return tuple(range(1, max(k, 1) + 1))
+
+
+def _rayleigh_band(cfg, model, f_max):
+    """Rayleigh (a0, a1) with ratio damping.zeta at the first and the last band mode."""
+    modes = _band_mode_numbers(model, f_max)
+    omega, _ = band_modes(model.M0, model.K0, max(modes[-1], 2))
+    wi, wj = omega[0], omega[max(modes[-1], 2) - 1]
+    z = cfg.damping.zeta
+    return 2 * z * wi * wj / (wi + wj), 2 * z / (wi + wj)
+
+
+_UNIT = {"stiffness": "N/m", "mass": "kg"}
+
+
+def _shown(v):
+    return {"multiplier": v.value} if isinstance(v, Multiplier) else v
+
+
+def _relative(path, key, v, nominal, physical, group):
+    """Relative change theta (Eqns 23-24) of a case value: a physical value (kg, N/m), or
+    ``{multiplier: x}`` for any mass or stiffness. A model whose parameters scale matrix
+    groups has no physical value to give, so a bare number there is refused: the old
+    meaning (a multiplier) would otherwise change silently."""
+    if isinstance(v, Multiplier):
+        return tuple(x - 1 for x in v.value) if isinstance(v.value, tuple) else v.value - 1
+    if not physical:
+        raise InputError(path, key, f"{{multiplier: x}} (this {group} parameter scales a matrix "
+                         f"group of the model and has no value in {_UNIT[group]})", v)
+    return tuple(x / nominal - 1 for x in v) if isinstance(v, tuple) else v / nominal - 1
+
+
 def _parameters(cfg, model, damping):
     pc = cfg.parameters
     path = cfg.path
     params = []
+    physical = cfg.model.type == "shear_frame"  # nominal values in kg and N/m
     for group, names, nominal, rel in (
             ("stiffness", model.alpha_names, model.alpha_nominal, pc.stiffness_bounds),
             ("mass", model.beta_names, model.beta_nominal, pc.mass_bounds)):
         for name, nom in zip(names, nominal):
+            def theta(section, v, name=name, nom=nom):
+                return _relative(path, f"parameters.{section}.{name}", v, nom, physical, group)
             lo, hi = rel
             if name in pc.bounds:
-                lo, hi = (v / nom - 1 for v in pc.bounds[name])
-            init = pc.initial[name] / nom - 1 if name in pc.initial else 0.0
+                lo, hi = theta("bounds", pc.bounds[name])
+            init = theta("initial", pc.initial[name]) if name in pc.initial else 0.0
             fixed = name in pc.fixed
             if fixed:
-                init = pc.fixed[name] / nom - 1
-                if pc.fixed[name] <= 0:
-                    raise InputError(path, f"parameters.fixed.{name}", "a positive value", pc.fixed[name])
+                init = theta("fixed", pc.fixed[name])
+                if init <= -1:
+                    raise InputError(path, f"parameters.fixed.{name}", "a positive value",
+                                     _shown(pc.fixed[name]))
             elif not lo <= init <= hi:
                 raise InputError(path, f"parameters.initial.{name}",
                                  f"a value within the bounds [{nom * (1 + lo):g}, {nom * (1 + hi):g}]",
                                  nom * (1 + init))
             if lo <= -1:
                 raise InputError(path, f"parameters.bounds.{name}", "a lower bound > 0", nom * (1 + lo))
-            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom)))
+            params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom),
+                                    unit=_UNIT[group] if physical else "x nominal"))
     d = cfg.damping
-    if isinstance(damping, GeneralDamping):
+    if isinstance(damping, (GeneralDamping, ModalGeneralDamping)):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
     else:
         lo_d, hi_d = damping.default_bounds()
     scales = damping.initial() if isinstance(damping, ModalDamping) else np.ones(len(damping.names))
     for name, init, lo, hi, s in zip(damping.names, damping.initial(), lo_d, hi_d, scales):
+        for section in ("fixed", "initial", "bounds"):
+            if isinstance(getattr(pc, section).get(name), Multiplier):
+                raise InputError(path, f"parameters.{section}.{name}", "a value in the damping "
+                                 "model's own units (damping parameters have no nominal value "
+                                 "to multiply)", "{multiplier: ...}")
         if name in pc.bounds:
             lo, hi = pc.bounds[name]
         fixed = name in pc.fixed
@@ -168,7 +241,9 @@ def _parameters(cfg, model, damping):
         params.append(Parameter(name, "damping", float(init), float(lo), float(hi), fixed=fixed,
                                 scale=float(s)))
     known = {p.name for p in params}
-    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds)):
+    prior_names = {k for k in pc.prior if k not in ("masses", "stiffnesses")}
+    for section, keys in (("fixed", pc.fixed), ("initial", pc.initial), ("bounds", pc.bounds),
+                          ("prior", prior_names)):
         for k in keys:
             if k not in known:
                 raise InputError(path, f"parameters.{section}.{k}",
@@ -183,8 +258,7 @@ def _parameters(cfg, model, damping):
             if nm in tie_of:
                 raise InputError(path, f"parameters.tie.{label}", "each parameter in one tie only", nm)
             tie_of[nm] = label
-    params = [Parameter(p.name, p.group, p.initial, p.lower, p.upper, p.fixed, tie_of.get(p.name),
-                        p.scale, p.nominal) for p in params]
+    params = [replace(p, tie=tie_of.get(p.name)) for p in params]
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
@@ -209,8 +283,16 @@ def _read_records(cfg, paths):
     spec = _record_spec(d)
     xs, ys, reports, first = [], [], [], None
     for path in paths:
-        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
-                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        try:
+            rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                      time_column=d.time_column, skip_rows=d.skip_rows)
+        except InputError as exc:  # a unit or column named in the case file: say which key
+            raise _case_key_error(cfg, exc) from None
+        check_record_alive(path, d.input["column"], rec.data["__input__"],
+                           f"data.input.column of {cfg.path}")
+        for i, c in enumerate(d.channels):
+            check_record_alive(path, c.column, rec.data[c.name],
+                               f"data.channels[{i}] of {cfg.path}")
         if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
             raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
                              rec.fs)
@@ -231,8 +313,16 @@ def _read_records(cfg, paths):
         from .estimate import _default_nperseg
         nperseg = _default_nperseg(n)
         noverlap = int(d.overlap * nperseg)
-    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
-                       noverlap=noverlap, window=d.window, source=paths[0])
+    try:
+        est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                           noverlap=noverlap, window=d.window, source=paths[0])
+    except InputError as exc:  # segment settings come from the case file: name its key
+        if exc.key not in ("nperseg", "noverlap"):
+            raise
+        raise InputError(cfg.path, "data.nperseg" if exc.key == "nperseg" else "data.overlap",
+                         f"{exc.expected} (the records have {n} samples)", exc.got) from None
+    check_coherence(cfg, est.f, est.coherence, [c.column for c in d.channels],
+                    [f"data.channels[{i}]" for i in range(len(d.channels))], est.n_averages)
     return est, first, reports
 
 
@@ -267,6 +357,20 @@ def _merge_quality(reports):
                          reports[0][1].settings)
 
 
+def _case_key_error(cfg, exc):
+    """A records-file error about a channel spec, renamed to the case file's key."""
+    key = exc.key
+    if key.startswith("channels."):
+        _, name, *rest = key.split(".")
+        field = rest[0] if rest else "column"
+        if name == "__input__":
+            return InputError(cfg.path, f"data.input.{field}", exc.expected, exc.got)
+        for i, c in enumerate(cfg.data.channels):
+            if c.name == name:
+                return InputError(cfg.path, f"data.channels[{i}].{field}", exc.expected, exc.got)
+    return exc
+
+
 def _detection_form(f, H, channels, excitation):
     """Each channel as an accelerance, absolute for ground input (-w^2 H + 1 for a
     receptance): every mode peaks there, while the 1/w^2 fall of a receptance
@@ -291,13 +395,31 @@ def _select(cfg, f, H, channels, excitation, coherence=None, sigma=None):
             mask &= f <= fc.fmax
         idx = np.nonzero(mask)[0]
     elif fc.method == "points":
+        check_points_inside(cfg, f)
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
+        check_points_inside(cfg, f)
         try:
             idx = _half_power(cfg, f, H, channels, excitation, coherence, sigma)
         except InputError as exc:  # freqsel names its argument; say which case key it is
-            raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
+            raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
+
+
+_FREQ_KEYS = {"k", "bands", "points", "fmin", "fmax", "n_peaks", "min_points_per_peak",
+              "min_coherence"}
+
+
+def _frequency_error(cfg, f, exc):
+    """A freqsel error named by a key that exists in the case file."""
+    if exc.key in _FREQ_KEYS:
+        return InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got)
+    if exc.key == "prominence_db":  # no resonance peak: the data, not a setting, is the cause
+        return InputError(cfg.path, "frequencies.method", "a method the data allow: half_power "
+                          f"needs a resonance peak, and {cfg.data.file} shows none in "
+                          f"{f[0]:g}-{f[-1]:g} Hz (check its record length and input, or use "
+                          "bands or all)", cfg.frequencies.method)
+    return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
 
 
 def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
@@ -342,8 +464,6 @@ def assemble(cfg, channels=None, data_file=None):
     """
     model = _load_model(cfg)
     n = model.n
-    damping = _damping(cfg, model)
-    params = _parameters(cfg, model, damping)
     f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
     force_dof = None
@@ -375,6 +495,8 @@ def assemble(cfg, channels=None, data_file=None):
                       if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
+    if cfg.data.type == "frf":
+        check_frf_alive(cfg, H, rows)
     H = H[rows]
     if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
         H = H * gains[:, None]
@@ -384,6 +506,12 @@ def assemble(cfg, channels=None, data_file=None):
                                         records=records, channels=tuple(channels),
                                         n_averages=n_avg))
     idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
+    # damping after the selection: modal-basis damping takes the band's modes
+    damping = _damping(cfg, model, float(f[idx].max()))
+    params = _parameters(cfg, model, damping)
+    check_free_parameters(cfg.path, params)
+    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
+    check_data_points(cfg, params, len(channels), idx.size, f)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type, force_dof=force_dof,
@@ -404,12 +532,46 @@ def build_problem(case):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
-        return UpdatingProblem(case.model, case.damping, case.params, case.target,
-                               residual=cfg.objective.residual, solver=solver,
-                               total_mass=cfg.parameters.total_mass)
-    except RuntimeError as exc:  # CasADi rejects an option: a case-file mistake
+        backend = choose_backend(cfg.model.frf_backend, case.model.n)
+        basis, info = _reduced_basis(case) if backend == "reduced" else (None, None)
+        problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                  residual=cfg.objective.residual, solver=solver,
+                                  total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                  basis=basis)
+        problem.reduced_info = info
+    except RuntimeError as exc:
+        if "option" not in str(exc).lower():  # not the user's options: a real failure
+            raise
         raise InputError(cfg.path, "solver.options", f"options that CasADi's {cfg.solver.name} "
                          f"accepts ({_casadi_reason(str(exc))})") from None
+    check_start_residuals(case, problem)
+    return problem
+
+
+def _reduced_basis(case):
+    """The reduced basis, after checking its FRF against the exact one at the initial model.
+
+    Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
+    over the case's frequencies exceeds the data noise (median over channels
+    of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
+    """
+    from .diagnose import noise_sigma  # diagnose builds on this module
+
+    tg = case.target
+    full = LinearSystem.from_model(case.model, case.damping, tg)
+    psi = reduced.basis(full, float(tg.omega.max()))
+    z0 = case.params.z0
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, tg.omega)
+    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
+    rms, worst = reduced.log_error(exact, small.frf(z0, tg.omega), tg.weight)
+    noise = float(np.median(noise_sigma(case, case.selected)))
+    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise}
+    if rms > noise:
+        raise InputError(case.config.path, "model.frf_backend",
+                         f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "
+                         f"exact FRF by {rms:.3g} (RMS of ln|H| on the case's frequencies), more "
+                         f"than the data noise {noise:.3g}", "reduced")
+    return psi, info
 
 
 def _casadi_reason(text):

@@ -6,30 +6,48 @@ import sys
 
 from .errors import InputError, SearchFailed
 from .executors import EXECUTORS
+from .outdir import check_writable, locked_folder, output_folder, prev_path
 
 __all__ = ["main"]
 
 
+def _out(args, default):
+    """The --out folder, checked for writing before any work (creates nothing)."""
+    out = os.path.abspath(args.out or os.path.join(os.path.dirname(os.path.abspath(args.case)),
+                                                   default))
+    check_writable(out)
+    return out
+
+
 def _run(args):
     from .config import load_case
-    from .workflow import run
 
+    out = _out(args, "results")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": args.solver,
                                 "executor": args.executor, "scheduler": args.scheduler})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "results"))
-    return run(cfg, out, resume=args.resume)
+    from .workflow import run
+    with output_folder(out, "run") as stage:
+        status = run(cfg, stage, resume=args.resume, ckpt_out=out)
+        stage.interrupted = status == 130
+    print(f"wrote {out}: summary.json, result.json, parameters.csv, figures, report.html"
+          + (f" (previous result in {prev_path(out)})" if os.path.isdir(prev_path(out)) else ""))
+    return status
 
 
 def _diagnose(args):
     from .config import load_case
-    from .diagnose import diagnose
 
+    out = _out(args, "diagnosis")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
                                 "solver": None})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "diagnosis"))
-    diagnose(cfg, out)
-    print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png")
+    from .diagnose import diagnose
+    from .report import write_report
+
+    with output_folder(out, "diagnose") as stage:
+        diagnose(cfg, stage)
+        write_report(stage)
+    print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png, report.html")
     return 0
 
 
@@ -37,42 +55,65 @@ def _batch(args):
     from .batch import find_records, run_batch
     from .config import load_case
 
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
-                                "solver": None})
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": args.workers,
+                                "solver": None, "executor": args.executor,
+                                "scheduler": args.scheduler})
     records = find_records(args.records)
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "batch"))
-    return run_batch(cfg, records, out, workers=args.workers or 1, resume=args.resume)
+    return run_batch(cfg, records, out, resume=args.resume)
 
 
 def _report(args):
     from .report import write_report
 
-    print(f"wrote {write_report(os.path.abspath(args.dir))}")
+    with locked_folder(os.path.abspath(args.dir)) as d:
+        print(f"wrote {write_report(d)}")
     return 0
 
 
+_EPILOG = """exit status:
+  0    done
+  2    a mistake in the command line, case file or data file (one line names the file,
+       the key and what is expected; nothing is written)
+  3    no local solve converged (no result written)
+  130  interrupted (Ctrl-C or SIGTERM); a run keeps the finished starts for --resume
+
+Case-file reference: docs/case_reference.md. Python API: docs/api (see README)."""
+
+
 def _parser():
+    from . import __version__
+
     ap = argparse.ArgumentParser(prog="frf-nlp", description="FRF-based model updating "
-                                 "with general viscous damping (CasADi NLP).")
+                                 "with general viscous damping (CasADi NLP).", epilog=_EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="update the model of a case file")
+    run = sub.add_parser("run", help="update the model of a case file", epilog=_EPILOG,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("case", help="case YAML file")
     run.add_argument("--out", help="output folder (default: results/ beside the case file)")
-    run.add_argument("--starts", type=int, help="local solves in the scatter search")
-    run.add_argument("--seed", type=int, help="seed of the trial points")
-    run.add_argument("--workers", type=int, help="worker processes")
-    run.add_argument("--solver", help="ipopt or sqpmethod (overrides the case file)")
+    run.add_argument("--starts", type=int, help="local solves in the scatter search (default: "
+                     "the case's search.starts, else 20)")
+    run.add_argument("--seed", type=int, help="seed of the trial points (default: search.seed, "
+                     "else 0)")
+    run.add_argument("--workers", type=int, help="worker processes (default: search.workers, "
+                     "else 1)")
+    run.add_argument("--solver", help="ipopt or sqpmethod (default: solver.name, else ipopt)")
     run.add_argument("--executor", choices=EXECUTORS,
                      help="where local solves run: local processes (default) or a Dask cluster")
     run.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
                      "--executor dask; without it a LocalCluster of --workers processes)")
     run.add_argument("--resume", action="store_true", help="continue an interrupted run into "
                      "the same --out from its checkpoint (DIR.partial/)")
-    dg = sub.add_parser("diagnose", help="find what physics the model leaves out")
+    dg = sub.add_parser("diagnose", help="find what physics the model leaves out",
+                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     dg.add_argument("case", help="case YAML file")
     dg.add_argument("--out", help="output folder (default: diagnosis/ beside the case file)")
-    dg.add_argument("--starts", type=int, help="baseline starts (a quarter are used)")
-    dg.add_argument("--seed", type=int, help="seed of the start points")
+    dg.add_argument("--starts", type=int, help="baseline starts, a quarter are used (default: "
+                    "search.starts, else 20)")
+    dg.add_argument("--seed", type=int, help="seed of the start points (default: search.seed, "
+                    "else 0)")
     bt = sub.add_parser("batch", help="update the same model from every record (monitoring)")
     bt.add_argument("case", help="case YAML file (data.file is replaced by each record)")
     bt.add_argument("records", nargs="+", help="record files, folders or glob patterns")
@@ -80,14 +121,22 @@ def _parser():
     bt.add_argument("--starts", type=int, help="local solves per record")
     bt.add_argument("--seed", type=int, help="seed of the trial points")
     bt.add_argument("--workers", type=int, help="records updated at once (worker processes)")
+    bt.add_argument("--executor", choices=EXECUTORS, help="where records run: local processes "
+                    "(default) or a Dask cluster")
+    bt.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                    "--executor dask; without it a LocalCluster of --workers processes)")
     bt.add_argument("--resume", action="store_true", help="keep the records an interrupted "
                     "batch finished and update only the rest")
-    rep = sub.add_parser("report", help="rebuild report.html of a finished run folder")
-    rep.add_argument("dir", help="the run's output folder")
+    rep = sub.add_parser("report", help="rebuild report.html of a finished run or diagnosis "
+                         "folder", epilog=_EPILOG,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)
+    rep.add_argument("dir", help="the output folder of 'frf-nlp run' or 'frf-nlp diagnose'")
     return ap
 
 
 def main(argv=None):
+    """Run the ``frf-nlp`` command with ``argv`` (default ``sys.argv[1:]``); returns the
+    exit status (0, 2, 3 or 130: see ``frf-nlp --help``)."""
     args = _parser().parse_args(argv)
     try:
         return {"run": _run, "diagnose": _diagnose, "batch": _batch,

@@ -4,9 +4,10 @@ Every user mistake raises one :class:`nlp.errors.InputError` naming the file,
 the key and what is expected. See the README's case-file reference.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
+import re
 
 import yaml
 
@@ -14,12 +15,13 @@ from .errors import InputError
 from .executors import EXECUTORS
 
 __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "DampingConfig",
-           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "FrequencyConfig",
+           "ExcitationConfig", "ChannelConfig", "DataConfig", "ScreenConfig", "Multiplier", "FrequencyConfig",
            "ObjectiveConfig", "SolverSection", "SearchSection"]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
+FRF_BACKENDS = ("auto", "dense", "sparse", "reduced")   # nlp.frf_backends.BACKENDS
 
 
 MODEL_TYPES = ("shear_frame", "matrices", "opensees")
@@ -27,9 +29,9 @@ MODEL_TYPES = ("shear_frame", "matrices", "opensees")
 
 @dataclass(frozen=True)
 class ModelConfig:
-    type: str                      # "shear_frame" | "matrices" | "opensees"
-    masses: tuple = ()             # shear_frame: kg per floor
-    stiffnesses: tuple = ()        # shear_frame: N/m per story
+    type: str = "shear_frame"      # "shear_frame" | "matrices" | "opensees"
+    masses: tuple = ()             # shear_frame (required): floor masses [kg], ground up
+    stiffnesses: tuple = ()        # shear_frame (required): story stiffnesses [N/m]
     file: str = None               # matrices: NPZ or MAT with M0, K0, M_infl, K_infl
     script: str = None             # opensees: the OpenSeesPy model script
     M: object = None               # matrices: path or {file, key} of M0 (.mtx, .npz, .mat)
@@ -37,37 +39,49 @@ class ModelConfig:
     dof_map: str = None            # matrices: (node, dof) of each row (CSV or array)
     constrained: tuple = ()        # matrices: (node, dof) rows to remove
     stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
-    mass_groups: dict = field(default_factory=dict)
+    mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
+    frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
+
+
+@dataclass(frozen=True)
+class Multiplier:
+    """A value stated as a multiple of the nominal one: ``{multiplier: x}`` (a number)
+    or, for bounds, ``{multiplier: [lo, hi]}`` (a pair)."""
+
+    value: object
 
 
 @dataclass(frozen=True)
 class ParameterConfig:
-    stiffness_bounds: tuple = (-0.5, 1.0)   # relative change
-    mass_bounds: tuple = (-0.5, 1.0)
-    fixed: dict = field(default_factory=dict)     # name -> physical value
-    initial: dict = field(default_factory=dict)   # name -> physical value
-    bounds: dict = field(default_factory=dict)    # name -> (lo, hi) physical
-    ties: dict = field(default_factory=dict)      # label -> [names]
-    total_mass: float = None
+    stiffness_bounds: tuple = (-0.5, 1.0)   # [lo, hi] relative change of every stiffness [-]
+    mass_bounds: tuple = (-0.5, 1.0)        # [lo, hi] relative change of every mass [-]
+    # Values in physical units (kg, N/m; damping in its model's units) or Multiplier
+    fixed: dict = field(default_factory=dict)     # name -> value [kg, N/m] or {multiplier: x}
+    initial: dict = field(default_factory=dict)   # name -> start value [kg, N/m] or {multiplier: x}
+    bounds: dict = field(default_factory=dict)    # name -> [lo, hi] [kg, N/m] or {multiplier: [lo, hi]}
+    ties: dict = field(default_factory=dict)      # (key: tie) label -> list of names sharing one variable
+    total_mass: float = None                      # known total mass, anchors the scale [kg]
+    prior: dict = field(default_factory=dict)     # diagnose: {masses: s, stiffnesses: s, <name>: s}, relative 1-sigma of the nominal value [-]
 
 
 @dataclass(frozen=True)
 class DampingConfig:
-    model: str = "general"                 # general | rayleigh | modal
-    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n
-    a0: float = None
-    a1: float = None
-    matrix: tuple = None                   # initial C [N s/m]
-    modal_zeta: tuple = None               # modal: initial ratios
-    diag_factor: float = 30.0
-    offdiag: float = 3.0
+    model: str = "general"                 # general | rayleigh | modal | modal_general | dashpots
+    zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n [-]
+    a0: float = None                       # initial Rayleigh mass coefficient [1/s] (with a1)
+    a1: float = None                       # initial Rayleigh stiffness coefficient [s] (with a0)
+    matrix: tuple = None                   # initial C, list of rows [N s/m]
+    modal_zeta: tuple = None               # modal: initial damping ratio of each mode [-]
+    diag_factor: float = 30.0              # general: bounds of L[i,i] as a factor of the start [-]
+    offdiag: float = 3.0                   # general: bound of |L[i,j]| relative to the diagonal [-]
+    modes: tuple = None                    # modal_general: 1-based nominal modes (default: the band's)
 
 
 @dataclass(frozen=True)
 class ExcitationConfig:
     type: str = "ground"                   # ground | force
-    floor: int = None                      # force: 1-based
+    floor: int = None                      # force: floor of the shaker, 1 = lowest
     node: int = None                       # force at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
     direction: object = None               # ground: DOF of the table motion (default ux)
@@ -75,13 +89,13 @@ class ExcitationConfig:
 
 @dataclass(frozen=True)
 class ChannelConfig:
-    name: str
-    floor: int                             # 1-based (None when node and dof are given)
-    output: str                            # derived from quantity for time histories
-    column: object                         # FRF file: 0-based index; records: column name
-    weight: float = 1.0
+    name: str                              # channel name (default ch1, ch2, ...)
+    floor: int                             # (required unless node and dof) 1 = lowest floor
+    output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
+    column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
+    weight: float = 1.0                    # weight of the channel's residuals [-]
     quantity: str = None                   # time histories: acceleration | displacement | velocity
-    unit: str = None                       # time histories: unit in the file
+    unit: str = None                       # time histories: unit in the file (g, mm, m/s^2, ...)
     node: int = None                       # sensor at a node ...
     dof: object = None                     # ... and DOF (number 1-6 or name ux..rz)
     scale: float = 1.0                     # calibration: file value x scale = value in the unit
@@ -97,16 +111,16 @@ class ScreenConfig:
 
 @dataclass(frozen=True)
 class DataConfig:
-    file: str                              # absolute path
+    file: str                              # (required unless records) data file, relative to the case
     format: str = "auto"                   # auto | npz | complex | magphase | db | magnitude | db_magnitude
-    unit_factor: float = 1.0               # multiplies the file's FRF to SI
-    channels: tuple = ()
+    unit_factor: float = 1.0               # multiplies the file's FRF to SI [-]
+    channels: tuple = ()                   # (required) list of channels (data.channels[] below)
     type: str = "frf"                      # frf | time_histories
-    input: dict = None                     # time histories: {column, quantity, unit, floor}
-    estimator: str = "H1"                  # H1 | H2 | Hv
-    nperseg: object = None                 # samples per segment, or "all"
-    overlap: float = 0.5
-    window: str = "hann"
+    input: dict = None                     # time histories (required): {column, quantity, unit, floor, scale, sign, from: {column, mass, unit}}
+    estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
+    nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
+    overlap: float = 0.5                   # Welch segment overlap, fraction [-]
+    window: str = "hann"                   # Welch window (scipy.signal name)
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -127,43 +141,43 @@ class DataConfig:
 @dataclass(frozen=True)
 class FrequencyConfig:
     method: str = "half_power"             # half_power | bands | points | all
-    k: float = 1.0
-    bands: tuple = ()
-    points: tuple = ()
-    fmin: float = None
-    fmax: float = None
-    n_peaks: int = None
-    min_points_per_peak: int = 5
-    min_coherence: float = None
+    k: float = 1.0                         # half_power: window half-width in half-power bandwidths [-]
+    bands: tuple = ()                      # bands: list of [f_lo, f_hi] [Hz]
+    points: tuple = ()                     # points: list of frequencies [Hz]
+    fmin: float = None                     # lowest frequency used [Hz]
+    fmax: float = None                     # highest frequency used [Hz]
+    n_peaks: int = None                    # half_power: number of peaks (default: all found)
+    min_points_per_peak: int = 5           # half_power: widen a window to at least this many points
+    min_coherence: float = None            # drop points below this coherence (records) [-]
 
 
 @dataclass(frozen=True)
 class ObjectiveConfig:
-    residual: str = "log_magnitude"
+    residual: str = "log_magnitude"        # log_magnitude | magnitude | complex (needs phase)
 
 
 @dataclass(frozen=True)
 class SolverSection:
-    name: str = "ipopt"
-    options: dict = field(default_factory=dict)
-    compile: bool = True
+    name: str = "ipopt"                    # ipopt | sqpmethod
+    options: dict = field(default_factory=dict)  # passed to CasADi's nlpsol
+    compile: bool = True                   # compile the residual and Jacobian to C (cached)
 
 
 @dataclass(frozen=True)
 class SearchSection:
-    starts: int = 20
-    trial_factor: int = 10
-    seed: int = 0
-    workers: int = 1
+    starts: int = 20                       # local solves of the scatter search
+    trial_factor: int = 10                 # trial points per start
+    seed: int = 0                          # seed of the trial points
+    workers: int = 1                       # worker processes
     executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
     scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
 
 
 @dataclass(frozen=True)
 class CaseConfig:
-    path: str
-    name: str
-    description: str
+    path: str                                     # (internal) absolute path of the case file
+    name: str                                     # case name (default: the case folder's name)
+    description: str                              # free text
     model: ModelConfig
     parameters: ParameterConfig
     damping: DampingConfig
@@ -174,7 +188,22 @@ class CaseConfig:
     solver: SolverSection
     search: SearchSection
     updates: dict = field(default_factory=dict)   # name -> channel names, averaged (Table 1)
-    closeup_seconds: float = 3.0
+    closeup_seconds: float = 3.0                  # (key: verification.closeup_seconds) close-up length [s]
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads YAML 1.2 floats too: ``2.552e6`` and ``1e-3`` are numbers
+    (YAML 1.1 wants a dot and a signed exponent, and would read them as text)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
 class _Reader:
@@ -257,8 +286,14 @@ def load_case(path, overrides=None):
     if not os.path.isfile(path):
         raise InputError(path, "<file>", "an existing case YAML file")
     try:
-        with open(path) as fh:
-            raw = yaml.safe_load(fh)
+        with open(path, "rb") as fh:
+            text = fh.read()
+        if b"\0" in text:
+            raise InputError(path, "<file>", "a YAML text file", "binary data")
+        raw = yaml.load(text.decode("utf-8"), Loader=_Loader)
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "<file>", "a YAML text file in UTF-8",
+                         f"undecodable byte at position {exc.start}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
     rd = _Reader(path)
@@ -292,8 +327,15 @@ def load_case(path, overrides=None):
 
 
 def _model(rd, d, base):
+    """The model section; ``frf_backend`` applies to every model type."""
+    backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
+    return replace(_model_kind(rd, d, base), frf_backend=backend)
+
+
+def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
-                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
+                               "frf_backend"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
@@ -378,7 +420,7 @@ def _opensees_model(rd, d, base):
 
 def _parameters(rd, d):
     rd.check_keys(d, "parameters", {"stiffness_bounds", "mass_bounds", "fixed", "initial",
-                                    "bounds", "tie", "total_mass"})
+                                    "bounds", "tie", "total_mass", "prior"})
     out = {}
     for key in ("stiffness_bounds", "mass_bounds"):
         if key in d:
@@ -389,9 +431,10 @@ def _parameters(rd, d):
             out[key] = (lo, hi)
     for key in ("fixed", "initial"):
         m = rd.mapping(d, f"parameters.{key}")
-        out[key] = {str(k): rd.number(m, k, f"parameters.{key}.{k}", required=True) for k in m}
+        out[key] = {str(k): _value_or_multiplier(rd, m, k, f"parameters.{key}.{k}") for k in m}
     bm = rd.mapping(d, "parameters.bounds")
-    out["bounds"] = {str(k): rd.interval(v, f"parameters.bounds.{k}") for k, v in bm.items()}
+    out["bounds"] = {str(k): _value_or_multiplier(rd, bm, k, f"parameters.bounds.{k}", pair=True)
+                     for k in bm}
     tm = rd.mapping(d, "parameters.tie")
     ties = {}
     for label, names in tm.items():
@@ -400,13 +443,35 @@ def _parameters(rd, d):
         ties[str(label)] = tuple(names)
     out["ties"] = ties
     out["total_mass"] = rd.number(d, "total_mass", "parameters.total_mass", positive=True)
+    pm = rd.mapping(d, "parameters.prior")
+    out["prior"] = {str(k): rd.number(pm, k, f"parameters.prior.{k}", required=True, positive=True)
+                    for k in pm}
     return ParameterConfig(**out)
+
+
+def _value_or_multiplier(rd, m, k, path, pair=False):
+    """A physical value (a number, or [lo, hi] for bounds) or ``{multiplier: ...}``."""
+    v = m[k]
+    if isinstance(v, dict):
+        rd.check_keys(v, path, {"multiplier"})
+        if "multiplier" not in v:
+            raise rd.err(path, "{multiplier: value}", v)
+        if pair:
+            lo, hi = rd.interval(v["multiplier"], f"{path}.multiplier")
+            if lo <= 0:
+                raise rd.err(f"{path}.multiplier", "multipliers > 0", list(v["multiplier"]))
+            return Multiplier((lo, hi))
+        return Multiplier(rd.number(v, "multiplier", f"{path}.multiplier", positive=True))
+    if pair:
+        return rd.interval(v, path)
+    return rd.number(m, k, path, required=True)
 
 
 def _damping(rd, d, n):
     rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
-                                 "diag_factor", "offdiag"})
-    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+                                 "diag_factor", "offdiag", "modes"})
+    model = rd.choice(d, "model", "damping.model",
+                      ("general", "rayleigh", "modal", "modal_general", "dashpots"), "general")
     out = dict(model=model)
     out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
     out["a0"] = rd.number(d, "a0", "damping.a0")
@@ -425,8 +490,17 @@ def _damping(rd, d, n):
         if n is not None and len(mat) != n:
             raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
         out["matrix"] = mat
+    if "modes" in d:
+        modes = rd.numbers(d["modes"], "damping.modes", positive=True)
+        if any(int(k) != k for k in modes) or (n is not None and max(modes) > n) \
+                or len(set(modes)) != len(modes):
+            raise rd.err("damping.modes", f"distinct mode numbers from 1 to {n}", d["modes"])
+        out["modes"] = tuple(sorted(int(k) for k in modes))
     if "modal_zeta" in d:
-        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+        length = len(out["modes"]) if model == "modal_general" and "modes" in out else \
+            (None if model == "modal_general" else n)
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=length,
+                                       positive=True)
     out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
     out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
     if out["diag_factor"] <= 1:

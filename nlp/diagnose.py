@@ -31,17 +31,20 @@ import numpy as np
 
 from .case import _half_power, assemble
 from .noise import sigma_ln
+from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                       extend_parameters, references)
 from .problem import SolverConfig, Target, UpdatingProblem
+from .provenance import provenance
 from .search import SearchConfig, scatter_search
+from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
+                                 effect_terms, quasi_covariance, scaled_delta_bic, significance,
+                                 tied)
 
-__all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS"]
+__all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
+           "HELD_OUT_GAIN"]
 
-BIC_ACCEPT = 10.0      # "very strong" evidence (Kass & Raftery)
-BIC_TIE = 6.0          # accepted candidates closer than this cannot be told apart
-HELD_OUT_GAIN = 0.8    # accepted physics must cut the held-out chi-square by 20 % or more
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
 
 SUGGESTIONS = {
@@ -91,6 +94,38 @@ def _normalised(problem, z, case, idx, sigma):
     if case.config.objective.residual == "complex":
         return np.abs(d) / np.sqrt(2) / sigma
     return d.real / sigma
+
+
+class _Kept:
+    """Collects every finished start of a scatter search (the checkpoint interface)."""
+
+    def __init__(self):
+        self.results = {}
+
+    def open(self, problem, config, starts):
+        return {}
+
+    def append(self, i, res):
+        self.results[i] = res
+
+    def close(self):
+        pass
+
+
+def _search(problem, config):
+    """Scatter search; (best result, converged). When no start converged (a solver that
+    crawls along a weakly determined direction until its iteration limit), the lowest
+    objective reached is used, as every f is a true evaluation at a feasible point, and
+    converged is False (diagnosis.json says so)."""
+    from .errors import SearchFailed
+    kept = _Kept()
+    try:
+        return scatter_search(problem, config, progress=None, checkpoint=kept).best, True
+    except SearchFailed:
+        finite = [r for r in kept.results.values() if np.isfinite(r.f)]
+        if not finite:
+            raise
+        return min(finite, key=lambda r: r.f), False
 
 
 def _fit(problem, z0_list):
@@ -214,9 +249,16 @@ def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
     return cells, rf, rh
 
 
-def _refit(case, target, current, z_cur, e, score, ref_chi, ref_held, n_fit, held, sig_held):
-    """Fit the current model plus candidate e; evidence against the current model."""
-    from .identify import standard_errors
+def _quasi_se(pr, z):
+    """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood)."""
+    r, J = pr.residuals(z)
+    cov, _ = quasi_covariance(J, r, max(pr.n_used - pr.params.n_z, 1))
+    T = pr.params.T
+    return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
+
+
+def _refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
+    """Fit the current model plus candidate e: values, quasi-likelihood errors, chi-squares."""
     refs = _refs(case)
     pr = _problem(case, target, current + [e])
     k = len(e.names)
@@ -234,68 +276,155 @@ def _refit(case, target, current, z_cur, e, score, ref_chi, ref_held, n_fit, hel
     at_bound = any(abs(t - b) <= 1e-5 * max(abs(sc), 1e-12)
                    for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
                    for b in (lo_, hi_) if b != 0.0)
-    chi = 2 * res.f
     rh = _normalised(pr, res.z, case, held, sig_held)
-    r, J = pr.residuals(res.z)
-    cov, _, _ = standard_errors(J, r, pr.n_used)
-    se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))[-k:]
-    entry = {"physics": e.family, "location": e.location, "enrichment": e,
-             "parameters": dict(zip(e.names, map(float, theta_e))),
-             "uncertainty": dict(zip(e.names, map(float, se))),
-             "score": score, "chi2": chi, "delta_bic": chi - ref_chi + k * math.log(n_fit),
-             "held_out": float(np.mean(rh ** 2)), "at_bound": at_bound, "z": res.z, "problem": pr}
-    # strong evidence on the fitted points with a held-out gain, or a held-out error
-    # halved by the added physics while the fit does not get worse
-    entry["accepted"] = not at_bound and (
-        (entry["delta_bic"] <= -BIC_ACCEPT and entry["held_out"] <= HELD_OUT_GAIN * ref_held)
-        or (entry["delta_bic"] <= 0 and entry["held_out"] <= 0.5 * ref_held))
-    return entry
+    se = _quasi_se(pr, res.z)[0][-k:]
+    return {"physics": e.family, "location": e.location, "enrichment": e,
+            "parameters": dict(zip(e.names, map(float, theta_e))),
+            "uncertainty": dict(zip(e.names, map(float, se))),
+            "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
+            "at_bound": at_bound, "z": res.z, "problem": pr}
 
 
-def _level_fit(cfg, path):
-    """Baseline fit to one test level: story stiffnesses with standard errors, modes."""
+def _refit_one(jobs, i):
+    """One refit in a worker: the result without its NLP (CasADi functions do not
+    pickle; the parent rebuilds the one it keeps)."""
+    r = _refit(*jobs[i])
+    r["problem"] = None
+    return r
+
+
+def _refit_all(jobs, workers):
+    """Refit independent candidates on the executor interface (nlp/executors): forked
+    local workers when workers > 1, which inherit the jobs without pickling them.
+
+    The results do not depend on the number of workers: each refit is
+    deterministic and they are returned in the order of the jobs.
+    """
+    from .executors import Setup, make_executor
+    workers = max(1, min(int(workers or 1), len(jobs)))
+    if workers == 1:
+        return [_refit(*j) for j in jobs]
+    with make_executor("local", workers=workers) as ex:
+        out = dict(ex.map(Setup(value=jobs), _refit_one, [(i, i) for i in range(len(jobs))]))
+    return [out[i] for i in range(len(jobs))]
+
+
+def _decide(results, ref_chi, ref_held, nu, n_fit):
+    """Evidence of every refitted candidate of one round, on a common quasi-likelihood scale.
+
+    phi is the dispersion left by the best-fitting candidate (the misfit no
+    candidate explains); chi-square differences are divided by it. A candidate is
+    accepted when it is not on a bound, its effect is clearly non-zero (|value| >
+    3 quasi-likelihood standard errors, every error below its value), and either
+    the scaled BIC drops by BIC_ACCEPT with a held-out gain, or the held-out
+    error halves while the fit does not get worse.
+    """
+    if not results:
+        return 1.0
+    phi = min(dispersion(r["chi2"], nu - len(r["parameters"])) for r in results)
+    for r in results:
+        names = list(r["parameters"])
+        k = len(names)
+        r["phi"] = phi
+        r["raw_delta_chi2"] = r["chi2"] - ref_chi
+        r["delta_bic"] = scaled_delta_bic(r["chi2"], ref_chi, k, n_fit, phi)
+        ok, why = significance(r["physics"], names, [r["parameters"][n] for n in names],
+                               [r["uncertainty"][n] for n in names])
+        r["significant"], r["why_not"] = ok, why
+        r["accepted"] = not r["at_bound"] and ok and (
+            (r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
+            or (r["delta_bic"] <= 0 and r["held_out"] <= 0.5 * ref_held))
+    return phi
+
+
+def _level_fit(cfg, path, z_start=None):
+    """Baseline fit to one test level: story stiffnesses with standard errors, modes.
+
+    Several starts (a short scatter search, plus z_start: another level's
+    optimum), so that the equivalent model of a level is not a local minimum
+    or stuck on a bound.
+    """
     from .frf import modal_parameters
-    from .identify import standard_errors
     c = assemble(cfg, data_file=path)
     sig = noise_sigma(c, c.selected)
     tg = _target(c, c.selected, sig)
     pr = _problem(c, tg)
-    res = _fit(pr, [pr.z0])
-    r, J = pr.residuals(res.z)
-    cov, _, _ = standard_errors(J, r, pr.n_used)
+    res, _ = _search(pr, SearchConfig(starts=6, seed=cfg.search.seed))
+    if z_start is not None:
+        alt = pr.solve(z_start)
+        if alt.f < res.f:
+            res = alt
     theta = pr.theta(res.z)
-    se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))
+    se = _quasi_se(pr, res.z)[0]
     sa, _, _ = pr.params.slices()
     nom = c.model.alpha_nominal
+    lo, hi = pr.bounds
+    on_bound = [bool(np.isclose(res.z[j], lo[j]) or np.isclose(res.z[j], hi[j]))
+                for j in (_z_column(pr, i) for i in range(sa.start, sa.stop)) if j is not None]
     M, K, C = pr.matrices(res.z)
     fn, zeta, _ = modal_parameters(M, C, K)
     return {"case": c, "problem": pr, "z": res.z, "sigma": sig, "k": nom * (1 + theta[sa]),
-            "k_se": nom * se[sa], "f": fn, "zeta": zeta, "path": path}
+            "k_se": nom * se[sa], "f": fn, "zeta": zeta, "path": path, "on_bound": on_bound}
+
+
+def _z_column(pr, i):
+    """The decision variable that moves theta_i (None when theta_i is fixed)."""
+    row = pr.params.T[i]
+    return int(np.argmax(np.abs(row))) if np.any(row != 0) else None
+
+
+def _level_location(ref, lv):
+    """Story whose stiffness change best explains the other level's data.
+
+    Score test at the reference level's model on the other level's data: each
+    story stiffness column of the Jacobian, with the damping and mass columns
+    projected out (damping also moves with the level), scored by the chi-square
+    drop it would give alone. Unlike a z-score of two separate fits, it does not
+    favour the story with the smallest standard error.
+    """
+    pr = lv["problem"]
+    r, J = pr.residuals(ref["z"])
+    sa, _, _ = pr.params.slices()
+    cols = [_z_column(pr, i) for i in range(sa.start, sa.stop)]
+    other = [j for j in range(J.shape[1]) if j not in cols]
+    Q = np.linalg.qr(J[:, other])[0] if other else np.zeros((J.shape[0], 0))
+    rp = r - Q @ (Q.T @ r)
+    scores = []
+    for j in cols:
+        if j is None:
+            scores.append(0.0)
+            continue
+        jp = J[:, j] - Q @ (Q.T @ J[:, j])
+        nn = float(jp @ jp)
+        scores.append(float(jp @ rp) ** 2 / nn if nn > 0 else 0.0)
+    return int(np.argmax(scores)), scores
 
 
 def _nonlinearity(cfg, log):
     """Compare the same model fitted to tests at different excitation levels.
 
     A linear structure gives the same story stiffnesses at every level, within
-    their standard errors; a story whose equivalent stiffness moves by more than
-    LEVEL_Z standard errors is reported as level-dependent (nonlinear), with the
-    equivalent stiffness and the modal damping at each level.
+    their standard errors. When some story moves by more than LEVEL_Z standard
+    errors, the structure is level-dependent (nonlinear); the story is the one
+    whose stiffness change best explains the other level's data (score test),
+    and the equivalent stiffness and modal damping at each level are reported.
     """
     if not cfg.data.level_files:
         return None
-    fits = [_level_fit(cfg, p) for p in (cfg.data.file,) + tuple(cfg.data.level_files)]
-    ref = fits[0]
+    ref = _level_fit(cfg, cfg.data.file)
+    fits = [ref] + [_level_fit(cfg, p, ref["z"]) for p in cfg.data.level_files]
     best = None
     for lv in fits[1:]:
         zsc = (lv["k"] - ref["k"]) / np.sqrt(lv["k_se"] ** 2 + ref["k_se"] ** 2)
-        i = int(np.argmax(np.abs(zsc)))
-        if best is None or abs(zsc[i]) > abs(best[1]):
-            best = (i, float(zsc[i]), lv)
-    i, zs, lv = best
+        i, scores = _level_location(ref, lv)
+        if best is None or np.max(np.abs(zsc)) > np.max(np.abs(best[1])):
+            best = (i, zsc, lv, scores)
+    i, zsc, lv, scores = best
+    zs = float(zsc[i])
     log(f"levels: story {i + 1} stiffness {ref['k'][i]:.1f} -> {lv['k'][i]:.1f} N/m "
-        f"({zs:+.1f} standard errors)")
-    if abs(zs) < LEVEL_Z:
-        return {"found": None, "max_z": zs}
+        f"({zs:+.1f} standard errors; largest change {np.max(np.abs(zsc)):.1f})")
+    if np.max(np.abs(zsc)) < LEVEL_Z or abs(zs) < LEVEL_Z:
+        return {"found": None, "max_z": float(np.max(np.abs(zsc)))}
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
@@ -315,7 +444,9 @@ def _nonlinearity(cfg, log):
                        "damping_ratios_level2": lv["zeta"].tolist()},
         "uncertainty": {f"k{i + 1}_level1": float(ref["k_se"][i]),
                         f"k{i + 1}_level2": float(lv["k_se"][i])},
-        "evidence": {"z_score": zs, "frequency_shift_percent": shift,
+        "evidence": {"z_score": zs, "z_scores": [float(x) for x in zsc],
+                     "location_scores": scores, "stiffness_on_bound": ref["on_bound"] + lv["on_bound"],
+                     "frequency_shift_percent": shift,
                      "held_out_chi2_other_level": {"level1_model": before, "level2_model": after}},
         "statement": (f"The structure is not linear: the equivalent stiffness of story {i + 1} "
                       f"(between {'the ground' if i == 0 else f'floor {i}'} and floor {i + 1}) "
@@ -329,8 +460,8 @@ def _nonlinearity(cfg, log):
 
 def _prune(case, target, found, state, n_fit, held, sig_held, log):
     """Backward elimination: drop a finding that the others make unnecessary (removing
-    it costs less than BIC_ACCEPT), then refit what is left and report its values."""
-    from .identify import standard_errors
+    it costs less than BIC_ACCEPT on the quasi-likelihood scale), then refit what is
+    left and report its values."""
     while len(found) > 1:
         best_drop = None
         for r in found:
@@ -339,7 +470,8 @@ def _prune(case, target, found, state, n_fit, held, sig_held, log):
             z = np.concatenate([state["z"][:pr.params.n_z - sum(len(x["parameters"]) for x in keep)]]
                                + [_params_z(pr, x, state) for x in keep])
             res = _fit(pr, [z])
-            cost = 2 * res.f - state["chi"] - len(r["parameters"]) * math.log(n_fit)
+            phi = dispersion(state["chi"], n_fit - pr.params.n_z - len(r["parameters"]))
+            cost = (2 * res.f - state["chi"]) / phi - len(r["parameters"]) * math.log(n_fit)
             if cost < BIC_ACCEPT and (best_drop is None or cost < best_drop[0]):
                 best_drop = (cost, r, keep, pr, res)
         if best_drop is None:
@@ -353,10 +485,8 @@ def _prune(case, target, found, state, n_fit, held, sig_held, log):
         found = keep
     # values and errors of the final set, from its own fit
     pr, z = state["problem"], state["z"]
-    r, J = pr.residuals(z)
-    cov, _, _ = standard_errors(J, r, pr.n_used)
     theta = pr.theta(z)
-    se = np.sqrt(np.clip(np.diag(pr.params.T @ cov @ pr.params.T.T), 0, None))
+    se = _quasi_se(pr, z)[0]
     k = pr.params.n_theta - pr.params.n_physics
     for x in found:
         for name in x["parameters"]:
@@ -401,7 +531,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     accepted, candidates tie (ambiguous), or max_findings are found. When the
     fitted windows are explained but the held-out shoulders are not, and no
     family is accepted, the windows are widened 3x once and the search repeated
-    (the effect lives off the resonances).
+    (the effect lives off the resonances). Then: effects inside the model class
+    (priors, damping decomposition), agreement with the case's other tests, and
+    the whole measured band.
     """
     case = assemble(cfg)
     screening = _screen(case, out, log) if widen == 1 else None
@@ -412,9 +544,13 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
+    check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
-    b_res = scatter_search(base, SearchConfig(starts=max(cfg.search.starts, 20),
-                                              seed=cfg.search.seed), progress=None).best
+    b_res, b_conv = _search(base, SearchConfig(starts=max(cfg.search.starts, 20),
+                                               seed=cfg.search.seed, workers=cfg.search.workers))
+    if not b_conv:
+        log("baseline: no start met the solver's convergence test (iteration limit); the "
+            "lowest objective reached is used")
     n_fit = base.n_used
     chi_b = 2 * b_res.f
     nu = max(n_fit - base.params.n_z, 1)
@@ -423,7 +559,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
         f"held-out {held_b:.2f} on {rh0.size} points")
     state = {"current": [], "z": b_res.z, "chi": chi_b, "held": held_b, "problem": base}
-    found, alternatives, absorbed, ties, tried = [], [], [], [], []
+    found, alternatives, absorbed, ties, tried, indistinct = [], [], [], [], [], []
+    phis, unconfirmed, consistency = [], [], []
+    others = _setup_others(cfg)
     for rnd in range(max_findings):
         if _adequate(state["chi"], nu, state["held"]) and rnd > 0:
             break
@@ -431,44 +569,263 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
                  for e in candidates(case) if not _same(e, state["current"])]
         pairs += _scan_secondary(case, target, state["current"], state["z"])
         if rnd == 0:
-            absorbed = [{"physics": e.family, "location": e.location, "fraction_left": kept}
-                        for e, (_, kept) in pairs if kept < ABSORBED]
+            absorbed = [(e, kept) for e, (_, kept) in pairs if kept < ABSORBED]
         scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
-        results = []
-        for sc, e in _to_refit(scored, top):
-            r = _refit(case, target, state["current"], state["z"], e, sc, state["chi"],
-                       state["held"], n_fit, held, sig_held)
-            results.append(r)
-            log(f"  [{rnd + 1}] {e.family} {e.location}: score {sc:.1f}, dBIC {r['delta_bic']:.1f}, "
-                f"held-out {r['held_out']:.2f}{' (accepted)' if r['accepted'] else ''}")
+        jobs = _to_refit(scored, top)
+        results = _refit_all([(case, target, state["current"], state["z"], e, sc, n_fit, held,
+                               sig_held) for sc, e in jobs], cfg.search.workers)
+        k_cur = state["problem"].params.n_z - base.params.n_z
+        phis.append(_decide(results, state["chi"], state["held"], nu - k_cur, n_fit))
+        for r in results:
+            log(f"  [{rnd + 1}] {r['physics']} {r['location']}: score {r['score']:.1f}, "
+                f"dBIC {r['delta_bic']:.1f} (phi {r['phi']:.2f}), held-out {r['held_out']:.2f}"
+                f"{' (accepted)' if r['accepted'] else ''}"
+                f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
         tried += results
         accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
+        if others and accepted:
+            accepted, rejected, recs = _hold_on_others(others, state, accepted, log)
+            unconfirmed += rejected
+            consistency += recs
         if not accepted:
             break
         best = accepted[0]
-        ties = [r for r in accepted[1:] if r["delta_bic"] - best["delta_bic"] < BIC_TIE]
-        if ties and rnd > 0:
-            # a further effect the data cannot attribute: report, do not add
+        ties = tied(accepted)
+        if ties:
+            # physically different candidates the data cannot tell apart: name them all,
+            # add none (a further effect after a finding is reported the same way)
+            indistinct = [best] + ties
             alternatives += accepted
-            ties = []
             break
+        if best["problem"] is None:  # refitted in a worker: rebuild its NLP here
+            best["problem"] = _problem(case, target, state["current"] + [best["enrichment"]])
         found.append(best)
         alternatives += accepted[1:]
-        if ties:
-            break
         state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
     if len(found) > 1:
         found, state = _prune(case, target, found, state, n_fit, held, sig_held, log)
-    if (widen == 1 and not found and chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)
+    if (widen == 1 and not found and not indistinct and chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)
             and not _adequate(chi_b, nu, held_b)):
         log("the fitted windows are explained but the held-out shoulders are not: "
             "widening the windows 3x and looking again")
         return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
-    return _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed,
-                    cells, fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin,
-                    screening=screening and screening["report"])
+    inside = _inside_model_class(cfg, case, state, absorbed, log)
+    final = {(r["physics"], repr(r["location"])) for r in found}
+    consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
+                   or not c["holds"]]
+    seen = set(final)
+    unconfirmed = [r for r in unconfirmed if (r["physics"], repr(r["location"])) not in seen
+                   and not seen.add((r["physics"], repr(r["location"])))]
+    whole = _whole_band(case, base, b_res.z, state["problem"], state["z"], fit)
+    ctx = {"base": base, "b_res": b_res, "found": found, "alternatives": alternatives,
+           "indistinct": indistinct, "tried": tried, "cells": cells, "fit": fit, "held": held,
+           "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
+           "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
+           "unconfirmed": unconfirmed,
+           "whole": whole, "phi": phis[0] if phis else 1.0,
+           "screening": screening and screening["report"], "baseline_converged": b_conv}
+    return _verdict(cfg, case, out, log, ctx)
+
+
+# ------------------------------------------------- effects inside the model class
+def _inside_model_class(cfg, case, state, absorbed, log):
+    """Parameters far outside their prior, concentrated dampers in the fitted C, and
+    the absorbed candidates that the fitted parameters actually point at."""
+    from .damping import GeneralDamping
+    from .diagnosis.priors import damper_check, floor_of_mass, prior_check, prior_sigmas
+    pr, z = state["problem"], state["z"]
+    se, cov = _quasi_se(pr, z)
+    theta = pr.theta(z)
+    sigmas = prior_sigmas(cfg.parameters.prior, pr.params)
+    outside = prior_check(pr.params, theta, se, sigmas)
+    findings, changes = [], []
+    shear = cfg.model.type == "shear_frame"
+    for o in outside:
+        floor = floor_of_mass(o["parameter"]) if shear and o["group"] == "mass" else None
+        dv = o["value"] - o["nominal"]
+        ds = o["standard_error"] * o["nominal"]
+        if floor is not None and dv > 0:
+            findings.append({
+                "physics": "added_mass", "location": {"floor": floor},
+                "parameters": {f"dm{floor}": dv}, "uncertainty": {f"dm{floor}": ds},
+                "evidence": {"source": "prior", "z_prior": o["z_prior"],
+                             "relative_change": o["relative_change"]},
+                "statement": (f"The mass of floor {floor} comes out at {o['value']:.4g} kg, "
+                              f"{100 * o['relative_change']:+.0f} % of its nominal "
+                              f"{o['nominal']:.4g} kg ({o['z_prior']:+.1f} prior sigmas): an "
+                              f"unmodelled mass of {dv:.3g} +- {ds:.2g} kg at floor {floor}.")})
+        else:
+            o["statement"] = (f"{o['parameter']} = {o['value']:.5g} "
+                              f"({100 * o['relative_change']:+.0f} % of nominal {o['nominal']:.5g}, "
+                              f"{o['z_prior']:+.1f} prior sigmas): a change of the modelled "
+                              "parameter, not missing physics.")
+            changes.append(o)
+    decomposition, dampers = None, []
+    if isinstance(case.damping, GeneralDamping) and shear:
+        decomposition, dampers = damper_check(pr, z, cov)
+    for d in dampers:
+        s = d["story"]
+        name = f"c{s - 1}{s}"
+        where = "the ground" if s == 1 else f"floor {s - 1}"
+        findings.append({
+            "physics": "local_damper", "location": {"between": [s - 1, s]},
+            "parameters": {name: d["excess"]}, "uncertainty": {name: d["standard_error"]},
+            "evidence": {"source": "damping_decomposition", "ratio_to_other_stories": d["ratio"]},
+            "statement": (f"The fitted damping is concentrated in story {s}: a dashpot of "
+                          f"{d['excess']:.3g} +- {d['standard_error']:.2g} N s/m between {where} "
+                          f"and floor {s} beyond the share of the other stories "
+                          f"({d['ratio']:.1f}x their damping per unit stiffness).")})
+    # absorbed candidates, kept only where the fitted parameters point at them
+    names = pr.params.names
+    fixed = {p.name for p in pr.params.params if p.fixed}
+    ratios = decomposition["story_ratio_c_over_k"] if decomposition else None
+    informative = []
+    for e, kept in absorbed:
+        ind = None
+        if e.family == "added_mass":
+            nm = f"m{e.floor}"
+            if nm in names and nm not in fixed:
+                i = names.index(nm)
+                d, sd = float(theta[i]), float(se[i])
+                zp = d / sigmas[nm] if nm in sigmas else None
+                if d > 0.05 and d > 3 * sd and (zp is None or zp > 2):
+                    ind = (f"m{e.floor} is {100 * d:+.1f} +- {100 * sd:.1f} % of nominal"
+                           + (f" ({zp:+.1f} prior sigmas)" if zp is not None else ""))
+        elif e.family == "local_damper" and ratios is not None and e.j == e.i - 1:
+            others = np.delete(np.asarray(ratios), e.i - 1)
+            ref = float(np.median(others)) if others.size else 0.0
+            if ref > 0 and ratios[e.i - 1] > 2 * ref:
+                ind = (f"story {e.i} carries {ratios[e.i - 1] / ref:.1f}x the damping per unit "
+                       "stiffness of the others in the fitted C")
+        if ind:
+            informative.append({"physics": e.family, "location": e.location,
+                                "fraction_left": kept, "indicator": ind})
+    if outside:
+        log("  outside the prior: " + ", ".join(f"{o['parameter']} {o['z_prior']:+.1f} sigma"
+                                               for o in outside))
+    return {"findings": findings, "parameter_changes": changes, "damping": decomposition,
+            "absorbed": informative}
+
+
+# ------------------------------------------------------------- other tests
+def _other_tests(cfg):
+    """(label, config, data file) of the case's other tests of the same structure."""
+    from .config import ExcitationConfig
+    d = cfg.data
+    out = []
+    if d.validation_file:
+        vcfg = cfg
+        if d.validation_force_floor is not None:
+            vcfg = replace(cfg, excitation=ExcitationConfig("force", d.validation_force_floor))
+        out.append((os.path.basename(d.validation_file), vcfg, d.validation_file))
+    for p in d.level_files:
+        out.append((os.path.basename(p), cfg, p))
+    return out
+
+
+def _setup_others(cfg):
+    """Each other test of the structure, assembled once: case, fitted points, target."""
+    out = []
+    for label, c_cfg, path in _other_tests(cfg):
+        c2 = assemble(c_cfg, data_file=path)
+        idx = _windows(c_cfg, c2, 1)
+        out.append({"label": label, "case": c2, "target": _target(c2, idx, noise_sigma(c2, idx)),
+                    "ref": {}})
+    return out
+
+
+def _hold_on_others(others, state, accepted, log):
+    """Keep the accepted candidates that hold on every other test of the structure.
+
+    On each other test, the current model with and without the candidate is
+    fitted (starting from this test's optimum). The candidate holds there when it
+    is accepted on its own evidence (scaled BIC drop >= BIC_ACCEPT, effect > 3
+    standard errors, no error above its value) and its effect agrees with this
+    test's within 3 combined standard errors. Returns (kept, rejected, records).
+    """
+    key = len(state["current"])
+    for o in others:
+        if key not in o["ref"]:
+            pr = _problem(o["case"], o["target"], state["current"])
+            o["ref"][key] = 2 * _fit(pr, [state["z"], pr.z0]).f
+    kept, rejected, records = [], [], []
+    for r in accepted:
+        names = list(r["parameters"])
+        v1 = [r["parameters"][n] for n in names]
+        s1 = [r["uncertainty"][n] for n in names]
+        holds_all = True
+        for o in others:
+            pr2 = _problem(o["case"], o["target"], state["current"] + [r["enrichment"]])
+            res = _fit(pr2, [r["z"], pr2.z0])
+            th2, se2 = pr2.theta(res.z), _quasi_se(pr2, res.z)[0]
+            ix = [pr2.params.names.index(n) for n in names]
+            v2, s2 = [float(th2[i]) for i in ix], [float(se2[i]) for i in ix]
+            chi2 = 2 * res.f
+            phi2 = dispersion(chi2, pr2.n_used - pr2.params.n_z)
+            d2 = scaled_delta_bic(chi2, o["ref"][key], len(names), pr2.n_used, phi2)
+            sig_ok, why = significance(r["physics"], names, v2, s2)
+            same = all(agree(a[1], a[2], b[1], b[2]) for a, b in
+                       zip(effect_terms(r["physics"], names, v1, s1),
+                           effect_terms(r["physics"], names, v2, s2)))
+            holds = bool(d2 <= -BIC_ACCEPT and sig_ok and same)
+            reason = ("" if holds else
+                      f"its BIC change there is only {d2:.1f}" if d2 > -BIC_ACCEPT else
+                      why if not sig_ok else
+                      "the two estimates differ by more than 3 combined standard errors")
+            records.append({"test": o["label"], "physics": r["physics"], "location": r["location"],
+                            "here": dict(zip(names, v1)), "here_uncertainty": dict(zip(names, s1)),
+                            "there": dict(zip(names, v2)), "there_uncertainty": dict(zip(names, s2)),
+                            "delta_bic_there": d2, "holds": holds, "reason": reason})
+            log(f"    {r['physics']} {r['location']} on {o['label']}: dBIC {d2:.1f}, "
+                + ", ".join(f"{n} {a:.4g}+-{b:.2g}" for n, a, b in zip(names, v2, s2))
+                + (" (holds)" if holds else f" (does not hold: {reason})"))
+            holds_all &= holds
+        if holds_all:
+            kept.append(r)
+        else:
+            r["accepted"] = False
+            r["why_not"] = "does not hold on another test of the structure"
+            rejected.append(r)
+    return kept, rejected, records
+
+
+# --------------------------------------------------------------- whole band
+def _whole_band(case, base, zb, improved, zi, fit):
+    """Residual map over every coherently measured frequency and the extra modes."""
+    from .case import _detection_form
+    from .diagnosis.band import MAX_SCATTER, band_map, band_mask, extra_modes, local_sigma
+    fc = case.config.frequencies
+    mask = band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence)
+    idx = np.nonzero(mask.any(axis=0))[0]
+    if idx.size < 5:
+        return None
+    f = case.f[idx]
+    ex = case.target.excitation
+
+    def ln_det(H):
+        return np.log(np.abs(_detection_form(f, H, case.channels, ex)) + 1e-300)
+
+    Lx = ln_det(case.H[:, idx])
+    sig = local_sigma(Lx)
+    m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there
+    fit_local = np.nonzero(np.isin(idx, fit))[0]
+    maps = {}
+    for key, pr, z in (("before", base, zb), ("after", improved, zi)):
+        La = ln_det(pr.channel_frfs(z, 2 * np.pi * f))
+        r = (Lx - La) / sig
+        cells = band_map(f, r, m, fit_local)
+        for c in cells:
+            c["channel"] = case.channels[c["channel"]].name
+        maps[key] = cells
+    extra = extra_modes(f, Lx, La, sig, m)
+    for e in extra:
+        e["channels"] = [case.channels[c].name for c in e["channels"]]
+        e["strongest"] = case.channels[e["strongest"]].name
+    used = m.any(axis=0)
+    return {"band_hz": [float(f[used].min()), float(f[used].max())] if used.any() else None,
+            "map": maps, "extra_modes": extra}
 
 
 def _screen(case, out, log):
@@ -515,78 +872,131 @@ def _statement(r):
 def _public(r):
     d = {k: r[k] for k in ("physics", "location", "parameters", "uncertainty")}
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
-                     "held_out_chi2": r["held_out"]}
+                     "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
+                     "raw_delta_chi2": r.get("raw_delta_chi2"),
+                     "significant": r.get("significant", True)}
     d["statement"] = _statement(r)
     return d
 
 
-def _verdict(cfg, case, out, log, base, b_res, found, alternatives, ties, tried, absorbed, cells,
-             fit, held, sig_fit, sig_held, chi_b, nu, held_b, state, nonlin=None, screening=None):
+def _where(r):
+    return f"{r['physics']} {r['location']}" if r["location"] else r["physics"]
+
+
+def _classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate):
+    """The verdict. Candidates that cannot be told apart, or findings that do not hold
+    on the case's other tests, with nothing else found, make it "ambiguous": an
+    inadequate model is said so, never turned into one confident finding. (Ties after
+    a confirmed finding are reported as what remains, next to it.)"""
+    if (indistinct or unconfirmed) and not confirmed and not nonlin and not inside:
+        return "ambiguous"
+    if confirmed or nonlin or inside:
+        return "missing_physics"
+    return "adequate" if adequate else "ambiguous"
+
+
+def _verdict(cfg, case, out, log, ctx):
     from .diagnose_plots import plot_diagnosis
     from .results import write_json
-    suggestions = []
-    if found and ties:
-        verdict = "ambiguous"
-        for r in [found[-1]] + ties:
-            if SUGGESTIONS[r["physics"]] not in suggestions:
-                suggestions.append(SUGGESTIONS[r["physics"]])
-    elif found or (nonlin and nonlin["found"]):
-        verdict = "missing_physics"
-    elif _adequate(chi_b, nu, held_b):
-        verdict = "adequate"
-    else:
-        verdict = "ambiguous"
-        suggestions = list(dict.fromkeys(SUGGESTIONS[r["physics"]] for r in tried[:2]))
+    base, b_res, state = ctx["base"], ctx["b_res"], ctx["state"]
+    found, indistinct, tried = ctx["found"], ctx["indistinct"], ctx["tried"]
+    chi_b, nu, held_b = ctx["chi_b"], ctx["nu"], ctx["held_b"]
+    nonlin, inside, consistency = ctx["nonlin"], ctx["inside"], ctx["consistency"]
+    unconfirmed, confirmed = ctx["unconfirmed"], found
+    suggestions, statements = [], []
+    nonlin_found = bool(nonlin and nonlin["found"])
+    verdict = _classify(confirmed, unconfirmed, indistinct, nonlin_found, inside["findings"],
+                        _adequate(chi_b, nu, held_b))
+    if verdict == "ambiguous":
+        group = indistinct or unconfirmed or tried[:2]
+        suggestions = list(dict.fromkeys(SUGGESTIONS[r["physics"]] for r in group))
     improved, z_imp = state["problem"], state["z"]
+    fit, held, sig_fit, sig_held = ctx["fit"], ctx["held"], ctx["sig_fit"], ctx["sig_held"]
     cells_after, _, _ = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
     k = improved.params.n_z - base.params.n_z
-    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
+    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b,
+                  "converged": ctx["baseline_converged"]}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
-    if nonlin and nonlin["found"] and not found:
+    if nonlin_found and not found:
         before_o, after_o = nonlin["held_out"]
         fit_before["other_level_held_out_chi2"] = before_o
         fit_after = dict(fit_before, other_level_held_out_chi2=after_o)
     remaining = bool(found) and not _adequate(state["chi"], max(nu - k, 1), state["held"])
-    statements = [_statement(r) for r in found]
-    findings = [_public(r) for r in found]
-    if nonlin and nonlin["found"]:
+    findings = [_public(r) for r in confirmed] + inside["findings"]
+    statements = [f["statement"] for f in findings]
+    if nonlin_found:
         findings.insert(0, nonlin["found"])
         statements.insert(0, nonlin["found"]["statement"])
     elif not cfg.data.level_files and (verdict == "ambiguous" or remaining):
         suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
+    if indistinct:
+        phi = indistinct[0].get("phi", 1.0)
+        statements.append(
+            "The model is inadequate here, and these candidates cannot be told apart: "
+            + "; ".join(f"{_where(r)} (dBIC {r['delta_bic']:.1f})" for r in indistinct)
+            + f" (within {BIC_TIE:g} of each other in BIC with the chi-square divided by the "
+            f"remaining misfit, phi = {phi:.1f})."
+            + (" They are candidates for what remains after the findings above." if found else ""))
+    for r in unconfirmed:
+        recs = [c for c in consistency if c["physics"] == r["physics"]
+                and c["location"] == r["location"] and not c["holds"]]
+        for c in recs:
+            there = ", ".join(f"{n} = {v:.4g} +- {c['there_uncertainty'][n]:.2g}"
+                              for n, v in c["there"].items())
+            statements.append(
+                f"{_statement(r)[:-1]} on {os.path.basename(cfg.data.file)}, but it does not hold on "
+                f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
+    if unconfirmed and verdict == "ambiguous":
+        statements.append("The model is inadequate here: no candidate holds on every test of "
+                          "this structure, so none can be named (seen on this test only: "
+                          + "; ".join(_where(r) for r in unconfirmed) + ").")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
                           "missing than the candidate families describe.")
-    if verdict == "ambiguous" and not found:
+    if verdict == "ambiguous" and not found and not indistinct and not unconfirmed:
         statements.append("The model does not explain the data within the noise, and no "
                           "candidate family explains the mismatch.")
+    for o in inside["parameter_changes"]:
+        statements.append(o["statement"])
+    whole = ctx["whole"]
+    if whole and whole["extra_modes"]:
+        statements.append("Resonances the model does not have (extra modes): " + "; ".join(
+            f"{e['frequency_hz']:.2f} Hz (seen by {', '.join(e['channels'])})"
+            for e in whole["extra_modes"]) + ".")
     chosen = {(r["physics"], repr(r["location"])) for r in found}
-    absorbed = [a for a in absorbed if (a["physics"], repr(a["location"])) not in chosen]
     alts, seen = [], set(chosen)
-    for r in sorted(alternatives, key=lambda r: r["delta_bic"]):
+    for r in sorted(ctx["alternatives"], key=lambda r: r["delta_bic"]):
         key = (r["physics"], repr(r["location"]))
         if key not in seen:
             seen.add(key)
             alts.append(r)
-    alternatives = alts
     result = {"verdict": verdict, "findings": findings,
-              "alternatives": [_public(r) for r in alternatives], "absorbed": absorbed,
+              "alternatives": [_public(r) for r in alts],
+              "indistinguishable": [_public(r) for r in indistinct],
+              "unconfirmed": [_public(r) for r in unconfirmed],
+              "consistency": consistency,
+              "absorbed": inside["absorbed"],
+              "parameter_changes": inside["parameter_changes"],
+              "damping_decomposition": inside["damping"],
               "summary": statements, "remaining_mismatch": remaining,
+              "evidence_scale": {"phi": ctx["phi"]},
               "fit": {"before": fit_before, "after": fit_after},
-              "residual_map": {"before": cells, "after": cells_after},
-              "suggested_measurements": suggestions}
-    if screening is not None:
-        result["screening"] = screening
+              "residual_map": {"before": ctx["cells"], "after": cells_after},
+              "whole_band": whole,
+              "extra_modes": whole["extra_modes"] if whole else [],
+              "suggested_measurements": suggestions, "provenance": provenance(cfg)}
+    if ctx.get("screening") is not None:
+        result["screening"] = ctx["screening"]
     os.makedirs(out, exist_ok=True)
-    plot_diagnosis(out, case, base, b_res.z, improved, z_imp, cells, cells_after,
+    plot_diagnosis(out, case, base, b_res.z, improved, z_imp, ctx["cells"], cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)
     write_json(os.path.join(out, "diagnosis.json"), result)
     log(f"verdict: {verdict}")
     for st in statements:
         log("  " + st)
-    if alternatives:
-        log("  alternatives: " + "; ".join(f"{a['physics']} {a['location']}" for a in alternatives))
+    if alts:
+        log("  alternatives: " + "; ".join(_where(a) for a in alts))
     for sg in suggestions:
         log(f"  suggested measurement: {sg}")
     log(f"  fit before: reduced chi-square {fit_before['reduced_chi2']:.2f}, held-out "

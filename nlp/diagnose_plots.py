@@ -2,13 +2,9 @@
 
 import os
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .plots import save_figure  # noqa: E402
+from .plots import new_figure, save_figure
 
 __all__ = ["plot_diagnosis"]
 
@@ -25,7 +21,8 @@ def _grid(cells, key):
 
 def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, family):
     """residual_map.png (fitted and held-out, before and after) and frf_diagnosis_<ch>.png."""
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), squeeze=False, layout="constrained")
+    fig = new_figure(figsize=(10, 6.5), layout="constrained")
+    axes = fig.subplots(2, 2, squeeze=False)
     for row, (cells, title) in enumerate(((before, "baseline"), (after, "with added physics"))):
         for col, key in enumerate(("fitted", "held_out")):
             chans, bands, G = _grid(cells, key)
@@ -46,7 +43,8 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
     H0 = base.channel_frfs(z_base, w)
     H1 = improved.channel_frfs(z_imp, w)
     for c, ch in enumerate(case.channels):
-        fig, ax = plt.subplots(figsize=(7, 4))
+        fig = new_figure(figsize=(7, 4))
+        ax = fig.subplots()
         ax.semilogy(case.f[keep], np.abs(case.H[c, keep]), color="0.45", lw=3, alpha=0.5,
                     label="measured")
         ax.semilogy(case.f[keep], np.abs(H0[c]), "--", color="tab:blue", label="baseline (updated)")

@@ -36,6 +36,9 @@ class Parameter:
         Typical magnitude, so decision variables are O(1).
     nominal : float
         Physical value at theta = 0 for alpha/beta (kg, N/m); None otherwise.
+    unit : str or None
+        Unit of the reported value ``nominal * (1 + theta)``: ``"kg"``, ``"N/m"``, or
+        ``"x nominal"`` for a parameter that scales a matrix group; None: by group.
     """
 
     name: str
@@ -47,6 +50,7 @@ class Parameter:
     tie: str = None
     scale: float = 1.0
     nominal: float = None
+    unit: str = None
 
 
 @dataclass(frozen=True)

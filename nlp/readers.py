@@ -188,8 +188,9 @@ def _load_columns(path, columns=None, skip_rows=0):
                 return {k: z[k] for k in z.files}
         if ext == ".mat":
             return {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
-    except (OSError, ValueError) as exc:
-        raise InputError(path, "format", f"a readable {ext} file", got=str(exc)) from exc
+    except Exception as exc:  # empty, truncated or corrupt (zipfile, EOF, OS errors)
+        raise InputError(path, "<file>", f"a readable {ext} file",
+                         got=f"{type(exc).__name__}: {exc}") from None
     if ext in _UFF_EXT:
         x, recs = _read_uff58(path, 1)
         cols = {r["id1"].strip(): np.asarray(r["data"], dtype=float) for r in recs}
@@ -494,12 +495,18 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None, db_re
                              got=db_reference)
         f, H = _frf_from_csv(path, fmt, delimiter, db_reference)
     elif ext == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in ("f", "H") if k not in z.files]
-            if missing:
-                raise InputError(path, missing[0], "arrays 'f' and 'H' in the .npz file",
-                                 got=z.files)
-            f, H = z["f"].astype(float), np.atleast_2d(z["H"]).astype(complex)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                missing = [k for k in ("f", "H") if k not in z.files]
+                if missing:
+                    raise InputError(path, missing[0], "arrays 'f' and 'H' in the .npz file",
+                                     got=z.files)
+                f, H = z["f"].astype(float), np.atleast_2d(z["H"]).astype(complex)
+        except InputError:
+            raise
+        except Exception as exc:  # empty, truncated or not a zip archive at all
+            raise InputError(path, "<file>", "a readable .npz file with arrays 'f' and 'H'",
+                             got=f"{type(exc).__name__}: {exc}") from None
     elif ext in _UFF_EXT:
         f, recs = _read_uff58(path, 4)
         H = np.array([np.asarray(r["data"], dtype=complex) for r in recs])

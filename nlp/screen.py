@@ -32,7 +32,8 @@ passive chain-like structure has, so they hold whatever the parameter values:
 ``setup_errors`` (each a dict with ``kind`` and ``message``), ``warnings``,
 and the per-check numbers. Functions in ``RECORD_CHECKS`` (for example a
 spike/dropout detector for time histories) are called with the case and
-return extra warnings or set-up errors in the same form.
+return extra warnings or set-up errors in the same form; the spikes and dropouts
+that nlp/quality.py found when the records were read are reported as warnings.
 """
 
 import numpy as np
@@ -45,6 +46,7 @@ __all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swa
 RECORD_CHECKS = []          # callables case -> list of {"kind", "message", "severity"}
 
 PEAK_PROMINENCE_DB = 6.0    # a resonance stands 6 dB above its surroundings in the channel sum
+PEAK_MIN_BINS = 3           # ... and is at least 3 bins wide at half its prominence
 QUAD_DOMINANT = 0.5         # quadrature counts when |Im A| >= 0.5 |A| (the mode dominates)
 QUAD_LEVEL = 0.05           # ... and |A_c| >= 5 % of the largest channel at that resonance
 MAC_GAIN = 0.12             # a swap must raise the mean MAC by this much ...
@@ -69,6 +71,9 @@ def _band(case):
 
 
 def _segments(case):
+    """Welch segments averaged in the estimate (1: one segment or an FRF file)."""
+    if getattr(case, "n_averages", None) is not None:
+        return int(case.n_averages)
     d = case.config.data
     if case.records is None or d.nperseg == "all":
         return 1
@@ -80,12 +85,16 @@ def _segments(case):
 
 def resonances(f, D, idx, max_peaks):
     """Bins of the resonances: peaks of sum_c |D_c| / median|D_c| standing
-    PEAK_PROMINENCE_DB above their surroundings, the most prominent max_peaks,
+    PEAK_PROMINENCE_DB above their surroundings and PEAK_MIN_BINS wide, the most
+    prominent max_peaks,
     in increasing frequency."""
     A = np.abs(D[:, idx])
     s = np.sum(A / (np.median(A, axis=1, keepdims=True) + 1e-300), axis=0)
     db = 20 * np.log10(s + 1e-300)
-    pk, prop = signal.find_peaks(db, prominence=PEAK_PROMINENCE_DB)
+    # a resonance spans several bins at half its prominence; a noise bump of a
+    # one-segment estimate is one or two bins wide
+    pk, prop = signal.find_peaks(db, prominence=PEAK_PROMINENCE_DB, width=PEAK_MIN_BINS,
+                                 rel_height=0.5)
     keep = np.argsort(-prop["prominences"])[:max_peaks]
     return np.sort(idx[pk[keep]])
 
@@ -222,7 +231,8 @@ def screen(case):
                                           f"opposite sign: at the first resonance "
                                           f"({case.f[peaks[0]]:.3g} Hz), where every floor moves in "
                                           "phase, its phase is offset by pi from the other channels'. "
-                                          "Check the sensor's orientation and wiring."})
+                                          "Check the sensor's orientation and wiring (or give the "
+                                          "channel sign: -1)."})
             Q[flipped] = -Q[flipped]
         swap = None
         if peaks.size >= 2 and len(set(floors)) >= 3:
@@ -239,8 +249,11 @@ def screen(case):
                                           f"at the resonances match the model's mode shapes with MAC "
                                           f"{best:.2f} when their data are exchanged, {base:.2f} as "
                                           "labelled. Check the channel order."})
-        if ex == "force" and peaks.size >= 2:
-            dp = driving_points(Q, sig)
+        # the force-floor test uses the resonances most channels see clearly (a noise
+        # bump of a one-segment estimate has a random phase on each channel)
+        clear = sig.sum(axis=0) >= max(2, (sig.shape[0] + 1) // 2)
+        if ex == "force" and clear.sum() >= 2:
+            dp = driving_points(Q[:, clear], sig[:, clear])
             checks["driving_point_channels"] = [names[c] for c in dp]
             checks["antiresonances_between_peaks"] = dict(zip(names, _antiresonances(case.f, D, peaks)))
             p = case.target.force_dof + 1
@@ -249,7 +262,8 @@ def screen(case):
             if at_p and not any(c in dp for c in at_p) and len(others) == 1 and (
                     swap is None or p not in (floors[swap[0]], floors[swap[1]])):
                 c = at_p[0]
-                bad = [f"{case.f[peaks[k]]:.3g}" for k in range(peaks.size) if sig[c, k] and Q[c, k] < 0]
+                bad = [f"{case.f[peaks[k]]:.3g}" for k in range(peaks.size)
+                       if clear[k] and sig[c, k] and Q[c, k] < 0]
                 good = [names[k] for k in dp]
                 zeros = checks["antiresonances_between_peaks"]
                 errors.append({"kind": "force_floor", "stated_floor": p, "data_floor": others[0],
@@ -267,6 +281,7 @@ def screen(case):
         warnings.append({"kind": "no_resonance", "message": "no resonance stands out in the band: "
                                                              "the set-up checks were skipped"})
     _coherence(case, peaks, names, warnings, checks)
+    _record_quality(case, warnings, checks)
     for check in RECORD_CHECKS:
         for item in check(case):
             (errors if item.get("severity") == "error" else warnings).append(item)
@@ -302,6 +317,23 @@ def _coherence(case, peaks, names, warnings, checks):
                              "dB (median) at the resonances: input noise or force drop-out; H1 "
                              "underestimates the peaks"})
 
+
+
+def _record_quality(case, warnings, checks):
+    """Spikes and dropouts found in the records when they were read (nlp/quality.py)."""
+    rep = getattr(case, "quality", None)
+    if rep is None:
+        return
+    counts = rep.counts()
+    checks["record_quality"] = counts
+    for ch, c in counts.items():
+        if c["spikes"] or c["dropouts"]:
+            warnings.append({"kind": "record_quality", "channel": ch,
+                             "message": f"records, channel {ch}: {c['spikes']} spike(s) and "
+                                        f"{c['dropouts']} dropout(s), {100 * c['fraction_flagged']:.2g} % "
+                                        "of the samples" + (" (repaired before estimating the FRFs)"
+                                                            if rep.removed else
+                                                            "; data.screen.remove: true repairs them")})
 
 def setup_error_result(report):
     """The diagnosis of a case whose data contradict its set-up: no physics is

@@ -64,6 +64,8 @@ class SearchResult:
     rel_tol: float = 0.01
     indices: list = None
     resumed: int = 0
+    agreed: tuple = ()
+
 
     def __post_init__(self):
         if self.indices is None:
@@ -73,8 +75,9 @@ class SearchResult:
     def near_best(self):
         """Converged results whose objective is within rel_tol (1 %) of the best."""
         fb = self.best.f
-        return [r for r in self.results
-                if r.success and r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
+        ok = set(self.agreed)
+        return [r for i, r in zip(self.indices, self.results)
+                if (r.success or i in ok) and r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
 
     def spread(self, to_theta):
         """Min, max and std of each theta over the near-best starts."""
@@ -134,11 +137,13 @@ def pick_starts(Z, scores, n, lo, hi, min_distance):
     return chosen.astype(int)
 
 
-def start_points(problem, config):
+def start_points(problem, config, executor=None, setup=None):
     """The start points (rows) and the number of trial points scored.
 
     Start 0 is the case's initial point; the others are picked from the
     seeded trial points, so the same problem and seed give the same starts.
+    With an executor of several workers the trial points are scored there, in
+    equal chunks (each point's score does not depend on the chunking).
     """
     lo, hi = problem.bounds
     n_starts = max(1, int(config.starts))
@@ -147,11 +152,24 @@ def start_points(problem, config):
     if n_starts > 1:
         n_trial = max(n_starts - 1, config.trial_factor * n_starts)
         Z = trial_points(lo, hi, n_trial, config.seed)
-        with np.errstate(all="ignore"):
-            scores = problem.objective_batch(Z.T)
+        if executor is not None and executor.workers > 1 and n_trial >= _PARALLEL_SCORING:
+            size = -(-n_trial // (4 * executor.workers))
+            chunks = [(k, Z[k:k + size]) for k in range(0, n_trial, size)]
+            got = executor.map(setup or Setup(value=problem), _score_chunk, chunks, batch_size=1)
+            scores = np.concatenate([got[k] for k, _ in chunks])
+        else:
+            scores = _score_chunk(problem, Z)
         idx = pick_starts(Z, scores, n_starts - 1, lo, hi, config.min_distance)
         starts += [Z[i] for i in idx]
     return np.array(starts), n_trial
+
+
+_PARALLEL_SCORING = 20_000  # trial points; below this, shipping them costs more than it saves
+
+
+def _score_chunk(problem, Z):
+    with np.errstate(all="ignore"):
+        return problem.objective_batch(Z.T)
 
 
 def converged(problem, res):
@@ -166,7 +184,9 @@ def converged(problem, res):
 def solve_start(problem, z0):
     """One local solve that never raises: a failure is a result with f = inf.
 
-    ``success`` of the returned result means :func:`converged`.
+    ``success`` of the returned result means :func:`converged`. A solve that
+    stopped without converging keeps the objective evaluated at the point it
+    returned (inf when that is not finite), never the solver's own report.
     """
     from .problem import LocalResult
 
@@ -180,7 +200,12 @@ def solve_start(problem, z0):
                            seconds=time.perf_counter() - t0, z0=np.asarray(z0, float))
     ok = converged(problem, res)
     f = res.f if np.isfinite(res.f) and np.all(np.isfinite(res.z)) else np.inf
-    return replace(res, success=ok, f=float(f))
+    if not ok and np.isfinite(f):
+        # a solver that gave up may report anything (IPOPT: f = 0 after an invalid
+        # number); keep only a true evaluation at the point it returned
+        with np.errstate(all="ignore"):
+            f = problem.objective(res.z)
+    return replace(res, success=ok, f=float(f) if np.isfinite(f) else np.inf)
 
 
 def _solve_item(problem, item):
@@ -227,19 +252,21 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     if progress is None:
         progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
-    starts, n_trial = start_points(problem, config)
-    results = checkpoint.open(problem, config, starts) if checkpoint is not None else {}
-    resumed = len(results)
-    todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
-    best_f = min([r.f for r in results.values() if r.success] or [np.inf])
     interrupted = False
     own = executor is None
     setup = setup or Setup(value=problem)
     stream = None
+    results = {}
     with interrupts_as_keyboard() as guard:
         try:
             if own:
                 executor = make_executor(config.executor, config.workers, config.scheduler)
+            starts, n_trial = start_points(problem, config, executor, setup)
+            if checkpoint is not None:
+                results = checkpoint.open(problem, config, starts)
+            resumed = len(results)
+            todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
+            best_f = min([r.f for r in results.values() if r.success] or [np.inf])
             stream = executor.stream(setup, _solve_item, todo)
             for i, res in stream:
                 with guard.deferred():  # a received start is always recorded
@@ -250,9 +277,11 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
                         best_f = min(best_f, res.f)
                     _progress(len(results), len(starts), best_f, progress)
         except KeyboardInterrupt:
+            if stream is None:  # nothing was started: nothing to keep
+                raise
             interrupted = True
             with guard.deferred(swallow=True):
-                for i, res in (stream.stop() if stream is not None else []):
+                for i, res in stream.stop():
                     results.setdefault(i, res)
                     if checkpoint is not None:
                         checkpoint.append(i, res)
@@ -269,6 +298,10 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     indices = sorted(results)
     ordered = [results[i] for i in indices]
     good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
+    dof = getattr(problem, "n_used", 0) - len(problem.z0)
+    agreed = agreed_minimum(ordered, indices, rel=AGREE_CHI2 / max(dof, 1))
+    if agreed:
+        good = [(results[i].f, i) for i in agreed]
     if not good:
         if interrupted:
             raise KeyboardInterrupt("interrupted before any local solve converged")
@@ -277,7 +310,42 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     best = results[min(good)[1]]  # lowest f; the lowest start index on ties
     return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
                         interrupted=interrupted, seconds=time.perf_counter() - t0,
-                        indices=indices, resumed=resumed)
+                        indices=indices, resumed=resumed, agreed=tuple(agreed))
+
+
+AGREE_CHI2 = 0.1  # objectives closer than this in chi-square are one minimum
+AGREE_MIN = 3     # independent starts that must reach it
+
+
+def agreed_minimum(results, indices, rel=1e-4, n_min=AGREE_MIN):
+    """Starts that stopped at a solver limit below every converged objective, when
+    at least ``n_min`` independent starts agree on that objective within ``rel``.
+
+    The search uses rel = 0.1 / (residuals - parameters): with the noise
+    variance estimated from the fit, s^2 = 2 f / dof, objectives that differ by
+    rel f differ by 0.1 in chi-square, far below what the data can tell apart.
+
+    A weakly identified direction (a damping entry the data barely see) can make
+    IPOPT crawl until its iteration limit while the objective no longer moves:
+    then no start meets the tolerance, and a start that "converged" elsewhere
+    may sit far higher. Agreement of independent starts is the check that the
+    objective's minimum is reached (not the parameters along the weak
+    direction; the result flags that). Returns the indices of the agreeing
+    starts (converged ones included), or [] when the converged best stands.
+    """
+    from .flags import LIMIT_STATUSES
+
+    f_conv = min([r.f for r in results if r.success] or [np.inf])
+    stopped = [r.f for r in results
+               if not r.success and r.status in LIMIT_STATUSES and np.isfinite(r.f)]
+    if not stopped:
+        return []
+    f_low = min(stopped)
+    if not f_low < f_conv - rel * abs(f_conv):
+        return []
+    group = [i for i, r in zip(indices, results) if np.isfinite(r.f)
+             and (r.success or r.status in LIMIT_STATUSES) and r.f <= f_low + rel * abs(f_low)]
+    return group if len(group) >= n_min else []
 
 
 def default_workers():

@@ -9,15 +9,11 @@ largest measured response.
 
 import os
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .metrics import correlation, nrmse, peak_error  # noqa: E402
-from .plots import save_figure  # noqa: E402
-from .simulate import simulate  # noqa: E402
+from .metrics import correlation, nrmse, peak_error
+from .plots import new_figure, save_figure
+from .simulate import simulate
 
 __all__ = ["replay", "plot_replay"]
 
@@ -57,7 +53,8 @@ def plot_replay(out_dir, name, rep, closeup_seconds=3.0):
     i = int(np.argmax(np.abs(meas)))
     lo = max(t[0], t[i] - closeup_seconds / 2)
     win = (t >= lo) & (t <= lo + closeup_seconds)
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6))
+    fig = new_figure(figsize=(8, 6))
+    a1, a2 = fig.subplots(2, 1)
     for ax, sel in ((a1, slice(None)), (a2, win)):
         ax.plot(t[sel], meas[sel], color="0.4", lw=1.6, label="measured")
         ax.plot(t[sel], sim[sel], color="tab:red", lw=0.9, label="simulated (updated model)")

@@ -92,6 +92,7 @@ def campaign(tmp_path_factory):
     return case_dir, truth
 
 
+@pytest.mark.slow  # a campaign of updates: ~15 s
 def test_batch_finds_the_stiffness_drop(campaign, tmp_path):
     case_dir, truth = campaign
     out = tmp_path / "out"
@@ -113,6 +114,7 @@ def test_batch_finds_the_stiffness_drop(campaign, tmp_path):
     assert len(hist) == 31 and hist[0].startswith("record,time,status,objective")
 
 
+@pytest.mark.slow
 def test_batch_resume_updates_only_the_rest(campaign, tmp_path, capsys):
     case_dir, _ = campaign
     out = tmp_path / "out"
@@ -125,3 +127,24 @@ def test_batch_resume_updates_only_the_rest(campaign, tmp_path, capsys):
     assert "16 records (12 already done)" in log
     again = (out / "history.csv").read_text().splitlines()
     assert again[:13] == first and len(again) == 17
+
+
+def _history(out):
+    rows = [ln.split(",") for ln in (out / "history.csv").read_text().splitlines()[1:]]
+    return {r[0]: r[3:] for r in rows}
+
+
+@pytest.mark.slow
+def test_batch_same_answer_on_every_executor(campaign, tmp_path):
+    """1 worker, the local pool and a Dask LocalCluster of 2 give the same history."""
+    pytest.importorskip("distributed")
+    case_dir, _ = campaign
+    recs = sorted(str(p) for p in (case_dir / "records").glob("*.npz"))[:6]
+    runs = {}
+    for tag, extra in (("one", ["--workers", "1"]), ("pool", ["--workers", "2"]),
+                       ("dask", ["--executor", "dask", "--workers", "2"])):
+        out = tmp_path / tag
+        assert main(["batch", str(case_dir / "case.yaml"), *recs, "--out", str(out),
+                     "--starts", "3", *extra]) == 0
+        runs[tag] = _history(out)
+    assert runs["one"] == runs["pool"] == runs["dask"]

@@ -41,6 +41,8 @@ BAD = [
     ({"parameters": {"fixed": {"m9": 5.0}}}, "parameters.fixed.m9", "parameter name"),
     ({"excitation": {"type": "force"}}, "excitation.floor", "required"),
     ({"search": {"starts": 0}}, "search.starts", "> 0"),
+    ({"parameters": {"prior": {"masses": -0.1}}}, "parameters.prior.masses", "> 0"),
+    ({"parameters": {"prior": {"m9": 0.1}}}, "parameters.prior.m9", "parameter name"),
     ({"unknown_section": 1}, "unknown_section", "known keys"),
 ]
 

@@ -3,6 +3,7 @@
 import os
 
 import numpy as np
+import pytest
 import scipy.io
 import yaml
 
@@ -10,6 +11,7 @@ from conftest import TABLE1_INITIAL_K, TABLE1_INITIAL_M, shear_K
 from helpers_case import write_case
 from nlp.case import assemble, build_problem
 from nlp.config import load_case
+from nlp.errors import InputError
 from nlp.frf import frf_dynamic_stiffness
 
 
@@ -37,10 +39,17 @@ def test_matrix_model_from_npz_and_mat_recovers_truth(tmp_path):
                                  parameters={"fixed": None})
         with open(path) as fh:
             cfg = yaml.safe_load(fh)
-        cfg["parameters"]["fixed"] = {"beta1": 5.16 / 4.64}  # a multiplier: 1 + relative change
+        # a matrix group has no value in kg: a bare number (the old multiplier) is refused
+        cfg["parameters"]["fixed"] = {"beta1": 5.16 / 4.64}
+        with open(path, "w") as fh:
+            yaml.safe_dump(cfg, fh)
+        with pytest.raises(InputError, match=r"parameters.fixed.beta1.*multiplier"):
+            assemble(load_case(path))
+        cfg["parameters"]["fixed"] = {"beta1": {"multiplier": 5.16 / 4.64}}
         with open(path, "w") as fh:
             yaml.safe_dump(cfg, fh)
         case = assemble(load_case(path))
+        assert case.params.params[case.params.names.index("beta1")].unit == "x nominal"
         pr = build_problem(case)
         res = pr.solve()
         M, K, C = pr.matrices(res.z)
@@ -75,3 +84,19 @@ def test_rayleigh_damping_case_recovers_rayleigh_truth(tmp_path):
     Mu, Ku, Cu = pr.matrices(res.z)
     np.testing.assert_allclose(Cu, a0 * M + a1 * K, rtol=1e-3, atol=1e-6)
     np.testing.assert_allclose(np.diag(Mu), MASSES, rtol=1e-3)
+
+
+def test_shear_frame_values_in_kg_or_as_multiplier_mean_the_same(tmp_path):
+    """parameters.fixed/initial/bounds: a bare number is kg or N/m; {multiplier: x} is
+    x times the nominal value. Both forms give the same parameter."""
+    a, _ = write_case(str(tmp_path / "a"), parameters={
+        "fixed": {"m1": 5.16}, "initial": {"k2": 1300.0}, "bounds": {"k3": [710.0, 2840.0]}})
+    b, _ = write_case(str(tmp_path / "b"), parameters={
+        "fixed": {"m1": {"multiplier": 5.16 / 4.64}}, "initial": {"k2": {"multiplier": 1300 / 1217}},
+        "bounds": {"k3": {"multiplier": [0.5, 2.0]}}})
+    pa, pb = (assemble(load_case(p)).params for p in (a, b))
+    for x, y in zip(pa.params, pb.params):
+        assert (x.initial, x.lower, x.upper, x.fixed) == pytest.approx(
+            (y.initial, y.lower, y.upper, y.fixed), rel=1e-12, abs=1e-12), x.name
+    k3 = pa.params[pa.names.index("k3")]
+    assert k3.nominal * (1 + k3.lower) == pytest.approx(710.0) and k3.unit == "N/m"

@@ -125,3 +125,34 @@ def test_force_at_another_floor_is_named(tmp_path):
     H = _frfs("force", F, force_floor=3)     # the case says floor 1
     errs = _case(tmp_path, H, F, "force", "floor")["setup_errors"]
     assert [(e["kind"], e["data_floor"]) for e in errs] == [("force_floor", 3)]
+
+
+def test_record_dropout_is_a_warning_not_a_setup_error(tmp_path):
+    """Records of a force test (response by exact FFT filtering here), one channel with a
+    stuck stretch: the screening reports it and blames no set-up."""
+    fs, n = 50.0, 2 ** 14
+    rng = np.random.default_rng(5)
+    force = rng.standard_normal(n)
+    f = np.fft.rfftfreq(n, 1 / fs)
+    H = _frfs("force", np.maximum(f, 1e-3))                     # accelerance per N, 4 floors
+    acc = np.fft.irfft(H * np.fft.rfft(force), n)
+    acc += 0.01 * acc.std(axis=1, keepdims=True) * rng.standard_normal(acc.shape)
+    acc[2, 5000:5040] = acc[2, 5000]                            # a 40-sample dropout
+    cols = {"t": np.arange(n) / fs, "force": force, **{f"acc{i + 1}": acc[i] for i in range(4)}}
+    np.savetxt(tmp_path / "rec.csv", np.column_stack(list(cols.values())), delimiter=",",
+               header=",".join(cols), comments="")
+    cfg = {"name": "rec", "model": {"type": "shear_frame", "masses": MASSES.tolist(),
+                                    "stiffnesses": STORIES.tolist()},
+           "damping": {"model": "general", "zeta": 0.02},
+           "excitation": {"type": "force", "floor": 1},
+           "data": {"type": "time_histories", "file": "rec.csv",
+                    "input": {"column": "force", "quantity": "force", "unit": "N", "floor": 1},
+                    "nperseg": 2048, "channels": [
+                        {"name": f"a{i + 1}", "floor": i + 1, "quantity": "acceleration",
+                         "unit": "m/s^2", "column": f"acc{i + 1}"} for i in range(4)]},
+           "frequencies": {"method": "half_power", "fmin": 0.5, "fmax": 8.0}}
+    (tmp_path / "case.yaml").write_text(yaml.safe_dump(cfg))
+    rep = screen(assemble(load_case(str(tmp_path / "case.yaml"))))
+    assert rep["setup_errors"] == []
+    quality = [w for w in rep["warnings"] if w["kind"] == "record_quality"]
+    assert [w["channel"] for w in quality] == ["a3"] and "dropout" in quality[0]["message"]

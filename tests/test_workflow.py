@@ -63,3 +63,16 @@ def test_report_rebuilds_and_links_existing_figures(run_dir):
 def test_report_on_a_non_run_folder_is_a_clear_error(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert "summary.json" in capsys.readouterr().err
+
+
+def test_report_shows_percent_units_c_and_provenance(run_dir):
+    out, _ = run_dir
+    page = (out / "report.html").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    nrmse = summary["time_domain"]["a1"]["nrmse"]
+    assert f"{100 * nrmse:.1f} %" in page                       # percent, as the console
+    assert "C of the final model [N s/m]" in page and "Provenance" in page
+    assert "absolute acceleration per ground acceleration" in page
+    assert "relative displacement per ground acceleration" in page and "s^2" in page
+    C = np.asarray(summary["model"]["C"])
+    assert f"{C[0, 0]:.6g}" in page

@@ -1,0 +1,94 @@
+"""Evidence for a candidate under model error (quasi-likelihood).
+
+Real structures are never exactly inside a model class. When the best model
+still leaves a reduced chi-square phi > 1, every chi-square difference is
+divided by phi (the quasi-likelihood dispersion; McCullagh & Nelder, ch. 9)
+before the BIC penalty is added, and standard errors are inflated by sqrt(phi).
+The accept threshold and the "cannot tell apart" window therefore widen with
+the misfit that remains: in raw chi-square units they are phi x BIC_ACCEPT and
+phi x BIC_TIE.
+"""
+
+import math
+
+import numpy as np
+
+__all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "SIGNIFICANCE", "AGREE", "dispersion",
+           "quasi_covariance", "scaled_delta_bic", "effect_terms", "significance", "agree",
+           "tied"]
+
+BIC_ACCEPT = 10.0      # "very strong" evidence (Kass & Raftery), in quasi-likelihood units
+BIC_TIE = 6.0          # candidates closer than this (scaled) cannot be told apart
+HELD_OUT_GAIN = 0.8    # accepted physics must cut the held-out chi-square by 20 % or more
+SIGNIFICANCE = 3.0     # an effect parameter must be this many standard errors from its null
+AGREE = 3.0            # two tests agree when they differ by less than this many combined SEs
+
+
+def dispersion(chi2, dof):
+    """Quasi-likelihood dispersion phi = max(1, chi2 / dof) (dimensionless)."""
+    return max(1.0, float(chi2) / max(int(dof), 1))
+
+
+def quasi_covariance(J, r, dof):
+    """Gauss-Newton covariance phi (J^T J)^-1 of the decision variables.
+
+    phi = max(1, r^T r / dof): residuals are already divided by their noise, so
+    phi = 1 is the noise alone; a larger misfit inflates the errors, a smaller
+    one never shrinks them below the noise-only value.
+    """
+    phi = dispersion(float(r @ r), dof)
+    return phi * np.linalg.pinv(J.T @ J), phi
+
+
+def scaled_delta_bic(chi2, chi2_ref, k, n_fit, phi):
+    """BIC change of adding k parameters, chi-square difference divided by phi (Eqn: BIC =
+    chi2 / phi + k ln n)."""
+    return (float(chi2) - float(chi2_ref)) / phi + k * math.log(n_fit)
+
+
+def effect_terms(family, names, values, errors):
+    """(label, distance from null, standard error) of the parameters that say how
+    large the effect is: the family's strength, not its nuisance parameters.
+
+    A flexible base is measured by its flexibility 1/k_b (null: a rigid base), so
+    the log10 stiffness enters as 10^-x with error ln(10) 10^-x SE(x).
+    """
+    v = dict(zip(names, values))
+    s = dict(zip(names, errors))
+    if family == "base_flexibility":
+        x, sx = v["log10_kb"], s["log10_kb"]
+        flex = 10.0 ** (-x)
+        return [("flexibility_1/kb", flex, math.log(10) * flex * sx)]
+    first = names[0]  # dm, mu, c, eta, k_ij, gain, delay: null 0
+    return [(first, v[first], s[first])]
+
+
+def significance(family, names, values, errors):
+    """(ok, reason): every effect parameter is more than SIGNIFICANCE standard
+    errors from its null, and no reported parameter has an error above its value."""
+    for label, d, se in effect_terms(family, names, values, errors):
+        if not abs(d) > SIGNIFICANCE * se:
+            return False, f"{label} = {d:.3g} is within {SIGNIFICANCE:g} standard errors ({se:.2g}) of zero"
+    for n, v, se in zip(names, values, errors):
+        if n == "log10_kb":
+            continue  # a logarithm: its size is not its certainty (see effect_terms)
+        if se > abs(v):
+            return False, f"{n} = {v:.3g} has a standard error {se:.2g} larger than its value"
+    return True, ""
+
+
+def agree(v1, se1, v2, se2):
+    """True when two estimates of one quantity differ by at most AGREE combined
+    standard errors."""
+    return abs(v1 - v2) <= AGREE * math.hypot(se1, se2)
+
+
+def tied(accepted, window=BIC_TIE):
+    """Accepted candidates (sorted, best first) that differ physically from the best
+    (another family or location) and lie within `window` of its scaled BIC change."""
+    if not accepted:
+        return []
+    best = accepted[0]
+    return [r for r in accepted[1:]
+            if (r["physics"], repr(r["location"])) != (best["physics"], repr(best["location"]))
+            and r["delta_bic"] - best["delta_bic"] < window]

@@ -1,0 +1,164 @@
+"""Effects inside the model class: fitted parameters against what was known.
+
+Some effects do not raise the misfit, because the case's own free parameters
+absorb them; they show only in the fitted values:
+
+* an added mass makes a floor mass land far outside its stated prior
+  (``parameters.prior`` in the case file: relative 1-sigma of the nominal
+  masses and stiffnesses, or of one named parameter);
+* a concentrated damper makes one story dominate the fitted C. The fitted C is
+  decomposed by non-negative least squares on a mass-proportional part a0 M and
+  story dashpot patterns P_s = (e_s - e_{s-1})(e_s - e_{s-1})^T (story 1 joins
+  the ground); a stiffness-proportional part a1 K is itself a combination of the
+  P_s with c_s = a1 k_s, so the story ratios rho_s = c_s / k_s are equal under
+  Rayleigh damping and one story far above the others is a local damper.
+"""
+
+import math
+import re
+
+import numpy as np
+from scipy.optimize import nnls
+
+__all__ = ["PRIOR_OUT", "DAMPER_RATIO", "prior_sigmas", "prior_check", "story_patterns",
+           "decompose_damping", "damper_check"]
+
+PRIOR_OUT = 3.0      # a value more than 3 prior sigmas from nominal is "far outside its prior"
+DAMPER_RATIO = 3.0   # a story whose c_s / k_s is 3x the others' median is a concentrated damper
+DETERMINED = 3.0     # ... and its excess is this many standard errors from zero
+MAX_UNEXPLAINED = 0.3  # a C this far from M + story patterns is not decomposed into dampers
+
+
+def prior_sigmas(prior, params):
+    """Relative 1-sigma prior of each free mass and stiffness parameter.
+
+    prior : dict from ``parameters.prior`` ({"masses": 0.1, "stiffnesses": 0.25,
+    "<name>": s}); returns {name: s} for the parameters it covers.
+    """
+    out = {}
+    if not prior:
+        return out
+    for p in params.params:
+        if p.fixed or p.group not in ("mass", "stiffness"):
+            continue
+        s = prior.get(p.name, prior.get("masses" if p.group == "mass" else "stiffnesses"))
+        if s is not None:
+            out[p.name] = float(s)
+    return out
+
+
+def prior_check(params, theta, se_theta, sigmas):
+    """Parameters far outside their prior, and determined well enough to say so.
+
+    theta, se_theta : relative changes (Eqns 23-24) and their standard errors, in the
+    order of ``params.params``. A parameter is reported when |theta| > PRIOR_OUT
+    prior sigmas and > DETERMINED standard errors. Returns a list of dicts with the
+    physical value [kg or N/m], nominal, relative change, its error and z_prior.
+    """
+    out = []
+    for i, p in enumerate(params.params):
+        s = sigmas.get(p.name)
+        if s is None:
+            continue
+        d, se = float(theta[i]), float(se_theta[i])
+        if abs(d) > PRIOR_OUT * s and abs(d) > DETERMINED * se:
+            nom = p.nominal
+            out.append({"parameter": p.name, "group": p.group, "nominal": nom,
+                        "value": nom * (1 + d), "relative_change": d, "standard_error": se,
+                        "prior_sigma": s, "z_prior": d / s})
+    return out
+
+
+def floor_of_mass(name):
+    """Floor number of a shear-frame mass name m<i>, else None."""
+    m = re.fullmatch(r"m(\d+)", name)
+    return int(m.group(1)) if m else None
+
+
+def story_patterns(n):
+    """Dashpot patterns of the n stories of a shear frame (story s joins floors s-1, s)."""
+    P = []
+    for s in range(n):
+        e = np.zeros(n)
+        e[s] = 1.0
+        if s > 0:
+            e[s - 1] = -1.0
+        P.append(np.outer(e, e))
+    return P
+
+
+def _vec(A):
+    iu = np.triu_indices(A.shape[0])
+    w = np.where(iu[0] == iu[1], 1.0, math.sqrt(2.0))  # Frobenius norm of the symmetric matrix
+    return A[iu] * w
+
+
+def decompose_damping(C, M):
+    """Non-negative least squares C ~ a0 M + sum_s c_s P_s.
+
+    Returns (a0 [1/s], c (n,) [N s/m], fraction of ||C||_F left unexplained).
+    """
+    n = C.shape[0]
+    B = np.column_stack([_vec(M)] + [_vec(P) for P in story_patterns(n)])
+    x, rn = nnls(B, _vec(0.5 * (C + C.T)))
+    return float(x[0]), x[1:], float(rn / max(np.linalg.norm(_vec(C)), 1e-300))
+
+
+def story_stiffness(K):
+    """Story stiffnesses k_s of a shear-frame K (k_1 to the ground)."""
+    n = K.shape[0]
+    k = np.empty(n)
+    for s in range(1, n):
+        k[s] = -K[s, s - 1]
+    k[0] = K[0, 0] - (k[1] if n > 1 else 0.0)
+    return k
+
+
+def _excess(C, M, K):
+    """Each story's dashpot beyond the proportional share of the other stories."""
+    _, c, _ = decompose_damping(C, M)
+    k = story_stiffness(K)
+    rho = c / np.maximum(k, 1e-300)
+    ref = np.array([np.median(np.delete(rho, s)) if rho.size > 1 else 0.0
+                    for s in range(rho.size)])
+    return c - ref * k, rho, ref, c
+
+
+def damper_check(problem, z, cov_z):
+    """Concentrated dampers in the fitted C of a shear frame.
+
+    problem : nlp.problem.UpdatingProblem (its numeric matrices(z)); cov_z : covariance
+    of z. The errors of the excess are propagated by central differences.
+    Returns (decomposition dict, list of flagged stories with excess [N s/m] and SE).
+    """
+    M, K, C = problem.matrices(z)
+    n = M.shape[0]
+    if n < 2:
+        return None, []
+    a0, c, left = decompose_damping(C, M)
+    ex, rho, ref, _ = _excess(C, M, K)
+    lo, hi = problem.bounds
+    G = np.zeros((n, z.size))
+    for j in range(z.size):
+        h = 1e-6 * max(1.0, abs(z[j]))
+        zp, zm = z.copy(), z.copy()
+        zp[j] = min(z[j] + h, hi[j]) if np.isfinite(hi[j]) else z[j] + h
+        zm[j] = max(z[j] - h, lo[j]) if np.isfinite(lo[j]) else z[j] - h
+        if zp[j] == zm[j]:
+            continue
+        G[:, j] = (_excess(*_mck(problem, zp))[0] - _excess(*_mck(problem, zm))[0]) / (zp[j] - zm[j])
+    se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", G, cov_z, G), 0, None))
+    info = {"a0": a0, "story_dashpots": c.tolist(), "story_ratio_c_over_k": rho.tolist(),
+            "unexplained_fraction": left}
+    flagged = []
+    for s in range(n):
+        if (left < MAX_UNEXPLAINED and ref[s] > 0 and ex[s] > DETERMINED * se[s]
+                and rho[s] > DAMPER_RATIO * ref[s]):
+            flagged.append({"story": s + 1, "excess": float(ex[s]), "standard_error": float(se[s]),
+                            "ratio": float(rho[s] / ref[s])})
+    return info, flagged
+
+
+def _mck(problem, z):
+    M, K, C = problem.matrices(z)
+    return C, M, K

@@ -1,0 +1,76 @@
+"""The blind benchmark's own simulators (scripts/make_blind_benchmark.py, which shares
+no code with the package) against closed-form answers."""
+
+import numpy as np
+
+import make_blind_benchmark as mb
+
+
+def _system():
+    m = np.array([4.0, 3.0, 2.0])
+    k = np.array([3000.0, 2500.0, 2000.0])
+    M, K = np.diag(m), mb.story_matrix(k)
+    C = 0.2 * M + 1e-3 * K
+    C[0, 0] += 3.0                       # a dashpot to the ground at floor 1: not proportional
+    return M, C, K
+
+
+def test_story_matrix_is_the_shear_chain():
+    K = mb.story_matrix([3.0, 2.0, 1.0])
+    assert np.allclose(K, [[5, -2, 0], [-2, 3, -1], [0, -1, 1]])
+
+
+def test_newmark_steady_state_matches_the_exact_frf():
+    M, C, K = _system()
+    b = np.array([0.0, 1.0, 0.0])
+    f0, h = 3.0, 1 / 4000
+    t = np.arange(0, 40, h)
+    q, _, a = mb.newmark(M, C, K, b, np.sin(2 * np.pi * f0 * t), h)
+    w = 2 * np.pi * f0
+    X = np.linalg.solve(K - w**2 * M + 1j * w * C, b)     # steady state of sin(w t) = Im(e^{jwt})
+    tail = t > 30
+    expect = np.imag(np.outer(X, np.exp(1j * w * t[tail])))
+    assert np.max(np.abs(q[:, tail] - expect)) < 2e-3 * np.max(np.abs(expect))
+    assert np.allclose(a[:, tail], -w**2 * expect, atol=5e-3 * w**2 * np.max(np.abs(expect)))
+
+
+def test_frequency_domain_and_ivp_agree_with_newmark_on_a_linear_system():
+    M, C, K = _system()
+    b = -M @ np.ones(3)
+    h = 1 / 2000
+    t = np.arange(0, 8, h)
+    u = np.sin(2 * np.pi * 1.5 * t) * np.exp(-((t - 3) / 1.0) ** 2)   # starts and ends at rest
+    qn = mb.newmark(M, C, K, b, u, h)[0]
+    qf = mb.freq_domain(M, C, K, np.zeros((3, 3)), b, u, h)[0]
+    qi = mb.nonlinear_ivp(M, C, K, b, u, h, story=2, kind="cubic", k_nl=0.0, gap=0.0)[0]
+    scale = np.max(np.abs(qn))
+    assert np.max(np.abs(qf - qn)) < 2e-3 * scale
+    assert np.max(np.abs(qi - qn)) < 2e-3 * scale
+
+
+def test_contact_spring_engages_beyond_the_gap_only():
+    M, C, K = _system()
+    b = np.array([1.0, 0.0, 0.0])
+    h = 1 / 2000
+    t = np.arange(0, 6, h)
+    u = 50 * np.sin(2 * np.pi * 1.0 * t) * np.exp(-((t - 2) / 0.8) ** 2)
+    q0 = mb.nonlinear_ivp(M, C, K, b, u, h, story=1, kind="contact", k_nl=0.0, gap=0.0)[0]
+    big_gap = 10 * np.max(np.abs(q0[0]))
+    q1 = mb.nonlinear_ivp(M, C, K, b, u, h, story=1, kind="contact", k_nl=5e4, gap=big_gap)[0]
+    q2 = mb.nonlinear_ivp(M, C, K, b, u, h, story=1, kind="contact", k_nl=5e4,
+                          gap=0.3 * np.max(np.abs(q0[0])))[0]
+    assert np.allclose(q1, q0, atol=1e-9)                  # never touches: linear
+    assert np.max(np.abs(q2[0])) < 0.9 * np.max(np.abs(q0[0]))   # the stop limits the drift
+
+
+def test_case_list_covers_every_family_at_five_sizes_and_has_60_cases():
+    specs = mb.specs(np.random.default_rng(0))
+    assert len(specs) >= 60
+    single = [s["effects"][0] for s in specs if len(s["effects"]) == 1 and not s.get("route")]
+    for fam in mb.FAMILIES:
+        assert sorted(sz for f, sz in single if f == fam) == sorted(mb.SIZES[fam])
+    assert sum(len(s["effects"]) == 2 for s in specs) >= 5
+    assert sum(not s["effects"] and not s.get("ordinary") for s in specs) >= 5   # null
+    assert sum(bool(s.get("ordinary")) for s in specs) >= 5
+    assert {s.get("route") for s in specs} >= {None, "frf_file"}
+    assert {s["signal"] for s in specs} == {"chirp", "random"}

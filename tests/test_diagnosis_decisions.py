@@ -1,0 +1,234 @@
+"""Decisions under model error, effects inside the model class, agreement between tests.
+
+The data are simulated here, independently of the package: the direct FRF
+-w^2 (K - w^2 M + j w C)^-1 b of a shear frame (conftest.shear_K) with 1 %
+complex noise, written as an NPZ FRF file next to a case file.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+from scipy.linalg import eigh
+
+from conftest import shear_K
+from nlp.config import load_case
+from nlp.diagnose import _classify, _decide, diagnose
+from nlp.diagnosis.evidence import BIC_TIE, dispersion, scaled_delta_bic, tied
+from nlp.diagnosis.priors import decompose_damping, story_patterns
+
+F = np.arange(0.5, 16.0, 0.02)
+
+
+def _accelerance(M, C, K, floor, rng, noise=0.01):
+    """Accelerances of every floor to a force at `floor` (1-based), with noise."""
+    n = M.shape[0]
+    b = np.zeros(n)
+    b[floor - 1] = 1.0
+    H = np.empty((n, F.size), complex)
+    for k, f in enumerate(F):
+        w = 2 * np.pi * f
+        H[:, k] = -w**2 * np.linalg.solve(K - w**2 * M + 1j * w * C, b)
+    return H * (1 + noise * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)))
+
+
+def _case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
+    """Write case.yaml for the FRF files [(name, force floor)] (first is the update)."""
+    data = {"file": files[0][0],
+            "channels": [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance",
+                          "column": i} for i in range(channels)]}
+    if len(files) > 1:
+        data["validation_file"] = files[1][0]
+        data["validation_force_floor"] = files[1][1]
+    case = {"name": "t", "model": {"type": "shear_frame", "masses": [float(x) for x in m_nom],
+                                  "stiffnesses": [float(x) for x in k_nom]},
+            "parameters": parameters, "damping": damping,
+            "excitation": {"type": "force", "floor": files[0][1]}, "data": data,
+            "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.5, "fmax": 15.0},
+            "search": {"starts": 8, "seed": 0, "workers": 1}}
+    (folder / "case.yaml").write_text(yaml.safe_dump(case, sort_keys=False))
+    return load_case(str(folder / "case.yaml"))
+
+
+def _write(folder, name, H):
+    np.savez(folder / name, f=F, H=H)
+
+
+def _frame(m, k, zeta=0.015):
+    M, K = np.diag(m), shear_K(k)
+    w = np.sqrt(eigh(K, M, eigvals_only=True))
+    a1 = 2 * zeta / (w[0] + w[-1])
+    a0 = a1 * w[0] * w[-1]
+    return M, a0 * M + a1 * K, K
+
+
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
+def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
+    rng = np.random.default_rng(1)
+    m_nom, k_nom = [5.0, 5.0, 5.0], [3000.0, 2800.0, 2600.0]
+    m = np.array([5.0, 7.5, 5.0])                # +2.5 kg on floor 2: +50 %, 5 prior sigmas
+    k = np.array(k_nom) * [1.1, 0.95, 1.05]      # ordinary changes, inside the 25 % prior
+    M, C, K = _frame(m, k)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = _case(tmp_path, m_nom, k_nom, [("frf.npz", 1)],
+                {"prior": {"masses": 0.10, "stiffnesses": 0.25}},
+                {"model": "rayleigh", "zeta": 0.015})
+    res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
+    assert res["verdict"] == "missing_physics", res["summary"]
+    assert [(f["physics"], f["location"]) for f in res["findings"]] == [("added_mass", {"floor": 2})]
+    dm = res["findings"][0]["parameters"]["dm2"]
+    se = res["findings"][0]["uncertainty"]["dm2"]
+    assert abs(dm - 2.5) < max(3 * se, 0.1)
+    assert se < dm
+    # the ordinary stiffness changes are within the prior: not reported
+    assert res["parameter_changes"] == []
+
+
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
+def test_concentrated_damper_from_the_fitted_damping(tmp_path):
+    rng = np.random.default_rng(2)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.01)
+    e = np.array([-1.0, 1.0, 0.0])               # dashpot between floors 1 and 2
+    C = C + 12.0 * np.outer(e, e)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = _case(tmp_path, m, k, [("frf.npz", 1)],
+                {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                {"model": "general", "zeta": 0.01})
+    res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
+    assert res["verdict"] == "missing_physics", res["summary"]
+    found = [(f["physics"], f["location"]) for f in res["findings"]]
+    assert ("local_damper", {"between": [1, 2]}) in found, res["summary"]
+    f = next(f for f in res["findings"] if f["physics"] == "local_damper")
+    # the excess over the other stories' share: 12 N s/m plus a1 k2 minus the median share
+    assert 8.0 < f["parameters"]["c12"] < 16.0
+
+
+def test_damping_decomposition_recovers_story_dashpots():
+    m, k = np.array([4.0, 5.0, 6.0, 5.0]), np.array([3000.0, 2500.0, 2000.0, 1500.0])
+    M, K = np.diag(m), shear_K(k)
+    c = np.array([0.5, 7.0, 0.25, 0.2])
+    C = 0.3 * M + sum(ci * P for ci, P in zip(c, story_patterns(4)))
+    a0, c_fit, left = decompose_damping(C, M)
+    assert a0 == pytest.approx(0.3, rel=1e-9)
+    assert np.allclose(c_fit, c, rtol=1e-9) and left < 1e-9
+    # a stiffness-proportional C is the story pattern with c_s = a1 k_s
+    _, c_fit, _ = decompose_damping(1e-3 * K, M)
+    assert np.allclose(c_fit, 1e-3 * k, rtol=1e-9)
+
+
+def _coupled(k, kc):
+    K = shear_K(k)
+    e = np.array([1.0, 0.0, -1.0])
+    return K + kc * np.outer(e, e)
+
+
+@pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
+@pytest.mark.parametrize("same_structure", [True, False], ids=["consistent", "inconsistent"])
+def test_finding_must_hold_on_the_other_test(tmp_path, same_structure):
+    """A coupling between floors 1 and 3, tested with the shaker at floor 1 and at floor 2.
+    On the same structure the finding holds on both; when the second test is of a frame
+    without the coupling, it does not, and the verdict says so."""
+    rng = np.random.default_rng(3)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, _ = _frame(m, k)
+    K = _coupled(k, 900.0)
+    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    K2 = K if same_structure else shear_K(k)
+    _write(tmp_path, "test2.npz", _accelerance(M, C, K2, 2, rng))
+    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+                {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                {"model": "rayleigh", "zeta": 0.015})
+    res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
+    checks = [c for c in res["consistency"] if c["physics"] == "nonadjacent_coupling"]
+    assert checks and checks[0]["test"] == "test2.npz"
+    if same_structure:
+        assert res["verdict"] == "missing_physics", res["summary"]
+        assert res["findings"][0]["location"] == {"between": [1, 3]}
+        assert checks[0]["holds"]
+        there = checks[0]["there"]["k13"]
+        assert abs(there - 900.0) < 3 * checks[0]["there_uncertainty"]["k13"] + 30
+    else:
+        assert not checks[0]["holds"]
+        assert res["verdict"] == "ambiguous"
+        assert all(f["physics"] != "nonadjacent_coupling" for f in res["findings"])
+        assert res["unconfirmed"][0]["physics"] == "nonadjacent_coupling"
+        assert any("does not hold on test2.npz" in s for s in res["summary"])
+
+
+def test_quasi_likelihood_scales_evidence_by_the_remaining_misfit():
+    # chi-square 1000 -> 500 on 100 points with 1 added parameter and reduced chi-square 5:
+    # the quasi-likelihood BIC change is -500 / 5 + ln(100)
+    phi = dispersion(500.0, 100)
+    assert phi == pytest.approx(5.0)
+    assert scaled_delta_bic(500.0, 1000.0, 1, 100, phi) == pytest.approx(-100 + math.log(100))
+    assert dispersion(50.0, 100) == 1.0      # never below the noise-only value
+
+
+def _result(physics, location, chi2, value=1.0, se=0.1):
+    return {"physics": physics, "location": location, "parameters": {"p": value},
+            "uncertainty": {"p": se}, "chi2": chi2, "held_out": 1.0, "at_bound": False}
+
+
+def test_five_different_candidates_within_the_window_are_ambiguous():
+    """Five physically different candidates whose chi-squares differ by less than phi x 6:
+    inadequate model, candidates cannot be told apart; never one confident finding."""
+    ref_chi, n_fit, nu = 4000.0, 200, 190
+    # the best leaves chi-square 1900 on 189 dof: phi = 10.05; the others are within 50
+    chis = [1900.0, 1910.0, 1925.0, 1940.0, 1950.0]
+    kinds = [("added_mass", {"floor": 1}), ("sensor_gain", {"channel": "a1"}),
+             ("nonadjacent_coupling", {"between": [1, 3]}), ("local_damper", {"between": [0, 1]}),
+             ("added_mass", {"floor": 2})]
+    results = [_result(p, loc, c) for (p, loc), c in zip(kinds, chis)]
+    phi = _decide(results, ref_chi, 10.0, nu, n_fit)
+    assert phi == pytest.approx(1900.0 / 189)
+    assert all(r["accepted"] for r in results)
+    acc = sorted(results, key=lambda r: r["delta_bic"])
+    ties = tied(acc)
+    assert len(ties) == 4 and (50.0 / phi) < BIC_TIE
+    assert _classify(confirmed=[], unconfirmed=[], indistinct=[acc[0]] + ties, nonlin=False,
+                     inside=[], adequate=False) == "ambiguous"
+    # without the quasi-likelihood scale the same chi-squares would be 50 apart: one winner
+    assert tied(acc, window=BIC_TIE / phi) == []
+
+
+def test_effect_within_three_standard_errors_is_not_accepted():
+    r = _result("sensor_gain", {"channel": "a1"}, 1000.0, value=0.05, se=0.02)
+    _decide([r], 4000.0, 10.0, 190, 200)
+    assert not r["significant"] and not r["accepted"]
+
+
+def test_extra_mode_found_with_its_channels_and_nothing_else():
+    """A 3-storey frame 'measured' with an appendage on floor 3 tuned to 11 Hz (a mode the
+    3-DOF model lacks); the model is the frame alone. The extra mode is reported at its
+    frequency on the channels that see it; the frame's own modes and zeros are not."""
+    from nlp.diagnosis.band import extra_modes, local_sigma
+    rng = np.random.default_rng(5)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.01)
+    H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
+    ms, fs = 0.05, 11.0                       # 1 % of a floor, 0.5 % damping
+    ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * 0.005 * ms * 2 * np.pi * fs
+    Ma = np.diag([5.0, 5.0, 5.0, ms])
+    Ka = np.zeros((4, 4))
+    Ka[:3, :3] = K
+    Ka[2, 2] += ks
+    Ka[2, 3] = Ka[3, 2] = -ks
+    Ka[3, 3] = ks
+    Ca = np.zeros((4, 4))
+    Ca[:3, :3] = C
+    Ca[2, 2] += cs
+    Ca[2, 3] = Ca[3, 2] = -cs
+    Ca[3, 3] = cs
+    H_meas = _accelerance(Ma, Ca, Ka, 1, rng, noise=0.01)[:3]
+    Lx, La = np.log(np.abs(H_meas)), np.log(np.abs(H_model))
+    sig = local_sigma(Lx)
+    modes = extra_modes(F, Lx, La, sig, np.ones_like(Lx, bool))
+    assert len(modes) == 1, modes
+    assert abs(modes[0]["frequency_hz"] - fs) < 0.3
+    assert 2 in modes[0]["channels"]          # floor 3 carries the appendage
+    # the model itself, measured with noise: no extra mode
+    H_same = _accelerance(M, C, K, 1, rng, noise=0.01)
+    Lx = np.log(np.abs(H_same))
+    assert extra_modes(F, Lx, La, local_sigma(Lx), np.ones_like(Lx, bool)) == []
