@@ -90,7 +90,7 @@ class ExcitationConfig:
 @dataclass(frozen=True)
 class ChannelConfig:
     name: str                              # channel name (default ch1, ch2, ...)
-    floor: int                             # (required unless node and dof) 1 = lowest floor
+    floor: int                             # (required unless node and dof) 1 = lowest floor, 0 = base sensor
     output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
     column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
     weight: float = 1.0                    # weight of the channel's residuals [-]
@@ -120,7 +120,7 @@ class DataConfig:
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
     overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name)
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels

@@ -42,7 +42,8 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
-           "var_ln_transient", "kernel_moment", "resolution_bias", "rest_mask", "rest_noise_psd", "local_scatter", "VAR_LN_MAX"]
+           "var_ln_transient", "kernel_moment", "resolution_bias", "rest_mask",
+           "rest_noise_psd", "local_scatter", "VAR_LN_MAX"]
 
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
 VAR_LN_MAX = math.pi ** 2 / 24

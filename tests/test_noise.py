@@ -66,7 +66,8 @@ def test_welch_overlap_correction():
 def test_chirp_noise_above_last_mode_is_not_a_mode(tmp_path):
     """fmax at the top of the excitation band (20 Hz), last mode at 7.4 Hz: the
     half-power selection keeps the three modes only."""
-    case = assemble(load_case(sf.null_case("transient", tmp_path, seed=6, frequencies={"fmax": 20.0})))
+    path = sf.null_case("transient", tmp_path, seed=6, frequencies={"fmax": 20.0})
+    case = assemble(load_case(path))
     M, _, K = sf.frame()
     modes = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real)) / (2 * np.pi)
     f_sel = case.f[case.selected]
