@@ -949,7 +949,8 @@ def _verdict(cfg, case, out, log, ctx):
                 f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
     if unconfirmed and verdict == "ambiguous":
         statements.append("The model is inadequate here: no candidate holds on every test of "
-                          "this structure, so none can be named (seen on this test only: "
+                          "this structure, so none can be named (not confirmed by the other "
+                          "tests: "
                           + "; ".join(_where(r) for r in unconfirmed) + ").")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
