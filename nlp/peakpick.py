@@ -14,7 +14,7 @@ same DOFs measures shape agreement.
 import numpy as np
 
 from .freqsel import find_peaks, half_power_band, peak_curve
-from .frf import modal_parameters
+from .frf import BASE_DOF, modal_parameters
 from .metrics import mac, modal_errors
 
 __all__ = ["pick_modes", "compare_modes"]
@@ -63,6 +63,8 @@ def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None,
     f_a, z_a, Phi = modal_parameters(M, C, K)
     ferr, _, pair = modal_errors(f_a, z_a, f_x, np.nan_to_num(z_x))
     dofs = [ch.dof for ch in channels]
+    Phi = np.array([Phi[d] if d != BASE_DOF else np.zeros(Phi.shape[1]) for d in dofs])
+    dofs = list(range(len(dofs)))
     rows = []
     for k in range(f_x.size):
         j = int(pair[k])

@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 
 from .codegen import compile_library
+from .frf import BASE_DOF
 from .frf_backends import choose as choose_backend
 from .frf_backends.dense import frf_symbolic
 from .frf_backends.sparse import SparseFRF
@@ -58,7 +59,11 @@ _DEFAULT_OPTIONS = {
 
 @dataclass(frozen=True)
 class Channel:
-    """A measured response: its name, 0-based DOF and output quantity."""
+    """A measured response: its name, 0-based DOF and output quantity.
+
+    ``dof == BASE_DOF`` (-1): a sensor on the base (floor 0). For a rigid base
+    its absolute acceleration is the ground input (absolute accelerance 1);
+    with a ``base_flexibility`` enrichment it is the base DOF's."""
 
     name: str
     dof: int
@@ -178,9 +183,12 @@ class UpdatingProblem:
         th = theta[self.params.physics_slice()]
         k = 0
         self._sensor = {}
+        self._base_dof = None
         for e in self.enrichments:
             th_e = th[k:k + len(e.names)]
             k += len(e.names)
+            if e.family == "base_flexibility":  # the DOF it appends is the base
+                self._base_dof = system["M"].shape[0]
             if hasattr(e, "apply"):
                 system = e.apply(system, th_e, ref)
             else:
@@ -210,7 +218,12 @@ class UpdatingProblem:
         for c, ch in enumerate(self.target.channels):
             if ch.output not in cache:
                 cache[ch.output] = frf_symbolic(Ma, Ca, Ka, w, b, ch.output, kh)
-            hr, hi = cache[ch.output][0][ch.dof], cache[ch.output][1][ch.dof]
+            if ch.dof == BASE_DOF and self._base_dof is None:   # rigid base: moves with the ground
+                hr = ca.SX(1.0 if ch.output == "absolute_accelerance" else 0.0)
+                hi = ca.SX(0.0)
+            else:
+                row = self._base_dof if ch.dof == BASE_DOF else ch.dof
+                hr, hi = cache[ch.output][0][row], cache[ch.output][1][row]
             for e, th_e in self._sensor.get(ch.name, ()):
                 hr, hi = e.output(hr, hi, w, th_e)
             out_r.append(hr)

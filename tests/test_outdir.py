@@ -93,6 +93,17 @@ def test_input_error_inside_leaves_nothing(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+def test_a_file_named_like_prev_or_staging_is_replaced(tmp_path):
+    out = str(tmp_path / "out")
+    os.mkdir(out)
+    open(out + ".prev", "w").write("x")
+    open(out + ".staging", "w").write("x")
+    with outdir.output_folder(out) as stage:
+        open(os.path.join(stage, "a"), "w").write("new")
+    assert os.listdir(out) == ["a"] and os.path.isdir(out + ".prev")
+    assert sorted(os.listdir(tmp_path)) == ["out", "out.prev"]
+
+
 def test_interrupted_result_says_so_inside(tmp_path):
     out = str(tmp_path / "out")
     with outdir.output_folder(out) as stage:
@@ -171,6 +182,7 @@ def test_run_twice_prev_permissions_provenance_and_cache_repair(case, tmp_path):
     assert r2["flags"] == []
 
 
+@pytest.mark.slow
 def test_sigkill_before_the_swap_keeps_the_old_folder(case, tmp_path):
     path, _, _ = case
     out = str(tmp_path / "out")
@@ -315,3 +327,30 @@ def test_damaged_cached_library_is_rebuilt(tmp_path, monkeypatch):
         fresh = str(tmp_path / f"eval{len(damage)}.so")
         shutil.copy(again, fresh)
         assert float(ca.external("rel_probe", fresh)([1.0, 2.0])) == 6.0
+
+
+@pytest.mark.slow
+def test_inverted_sensor_is_flagged_by_the_replay(tmp_path):
+    """An accelerometer mounted upside down: |H| (the fit) cannot see it, the time-domain
+    replay anti-correlates with its record, and the run says: likely a sign or unit error."""
+    import shutil
+    import yaml
+    from make_shake_table import make
+    t, cols, _ = make(seed=5)
+    cols["acc4"] = -cols["acc4"]
+    names = list(cols)
+    np.savetxt(tmp_path / "records.csv", np.column_stack([cols[n] for n in names]),
+               delimiter=",", header=",".join(names), comments="")
+    cfg = yaml.safe_load(open(os.path.join(ROOT, "cases", "four_story_shake_table", "case.yaml")))
+    cfg["data"]["channels"] = cfg["data"]["channels"][:4]  # the accelerometers, one update
+    cfg.pop("updates")
+    yaml.safe_dump(cfg, open(tmp_path / "case.yaml", "w"))
+    proc = cli_inproc("run", tmp_path / "case.yaml", "--out", tmp_path / "out", "--starts", 2,
+                      "--workers", 1)
+    assert proc.returncode == 0, proc.stderr
+    s = json.load(open(tmp_path / "out" / "summary.json"))
+    assert s["time_domain"]["a4"]["correlation"] < -0.9
+    assert all(s["time_domain"][c]["correlation"] > 0.9 for c in ("a1", "a2", "a3"))
+    assert [f["subject"] for f in s["flags"] if f["kind"] == "negative_correlation"] == ["a4"]
+    assert "WARNING (negative_correlation)" in proc.stdout
+    assert "negative_correlation" in (tmp_path / "out" / "report.html").read_text()

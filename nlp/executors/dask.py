@@ -133,7 +133,7 @@ class DaskExecutor(Executor):
             # profiler samples every 10 ms and took ~20 % of a worker's time on 10-ms solves.
             with dask.config.set({"distributed.worker.profile.enabled": False}):
                 self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
-                                             processes=True, dashboard_address=None,
+                                             processes=True, dashboard_address=":0",
                                              silence_logs=logging.ERROR)
             self._client = Client(self._cluster)
 
