@@ -28,7 +28,7 @@ from .estimate import estimate_frf
 from .noise import noise_model
 from .readers import read_frf, read_frf_coherence, read_time_histories
 
-__all__ = ["Case", "assemble", "build_problem"]
+__all__ = ["Case", "assemble", "build_problem", "detection_noise"]
 
 
 @dataclass(frozen=True)
@@ -430,18 +430,26 @@ def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
     coherence = None if coherence is None else coherence[rows]
     sigma = None if sigma is None else sigma[rows]
     det = _detection_form(f, H, channels, excitation)
-    if sigma is not None:
-        jw = 2j * np.pi * f
-        power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.array([np.abs(H[c] * jw ** (2 - power[ch.output])) / np.abs(det[c])
-                              for c, ch in enumerate(channels)])
-        sigma = sigma * np.nan_to_num(ratio, nan=1.0, posinf=1.0)
+    sigma = detection_noise(f, H, det, channels, sigma)
     return select_frequencies(f, det, k=fc.k,
                               coherence=coherence, min_coherence=fc.min_coherence,
                               bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                               min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
                               fmax=fc.fmax, sigma=sigma)
+
+
+def detection_noise(f, H, det, channels, sigma):
+    """Std of ln|det| from the std of ln|H| (n_ch, n_f): the jw powers leave it
+    unchanged, the +1 of a relative channel under ground input scales it by
+    |jw^p H| / |det|. None stays None."""
+    if sigma is None:
+        return None
+    jw = 2j * np.pi * f
+    power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.array([np.abs(H[c] * jw ** (2 - power[ch.output])) / np.abs(det[c])
+                          for c, ch in enumerate(channels)])
+    return sigma * np.nan_to_num(ratio, nan=1.0, posinf=1.0)
 
 
 def _nonempty(cfg, f, idx):

@@ -31,16 +31,17 @@ def _receptance_form(f, H, channels):
     return out
 
 
-def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None):
+def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None, sigma=None):
     """Frequencies [Hz], damping ratios and shapes (n_ch, n_modes) of the peaks.
 
     detection : the FRFs in which to look for peaks (default H), e.g. the
-    accelerance form used for frequency selection.
+    accelerance form used for frequency selection; sigma : std of ln|detection|
+    (n_ch, n_f), the noise a peak must stand out of (`freqsel.find_peaks`).
     """
     D = H if detection is None else detection
     shapes = _receptance_form(f, H, channels)
     fr, zr, phi = [], [], []
-    for ip in find_peaks(f, D, fmin=fmin, fmax=fmax):
+    for ip in find_peaks(f, D, fmin=fmin, fmax=fmax, sigma=sigma):
         curve = peak_curve(f, D, ip)
         lo, hi = half_power_band(f, curve, ip)
         win = slice(max(ip - 2, 0), ip + 3)
@@ -51,13 +52,15 @@ def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None):
     return np.array(fr), np.array(zr), np.array(phi).T.reshape(len(channels), len(fr))
 
 
-def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None, phase=True):
+def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None, phase=True,
+                  sigma=None):
     """Peak-picked modes against the model's: one dict per measured mode.
 
     ``phase=False`` (magnitude-only data): frequency and damping only; the
-    MAC needs the quadrature part of the FRFs, so it is None.
+    MAC needs the quadrature part of the FRFs, so it is None. sigma : as in
+    `pick_modes`.
     """
-    f_x, z_x, phi_x = pick_modes(f, H, channels, detection, fmin, fmax)
+    f_x, z_x, phi_x = pick_modes(f, H, channels, detection, fmin, fmax, sigma)
     if f_x.size == 0:
         return []
     f_a, z_a, Phi = modal_parameters(M, C, K)
