@@ -452,8 +452,10 @@ class UpdatingProblem:
         """f at each column of Z (n_z, n_points), evaluated in one compiled loop."""
         Z = np.atleast_2d(np.asarray(Z, float))
         n = Z.shape[1]
-        if self.backend != "dense":
-            return np.array([self.objective(Z[:, i]) for i in range(n)])
+        if self.backend != "dense":  # residuals only: no adjoint solves for trial points
+            data = self._data(self._p)
+            rs = (self.evaluator.residuals(Z[:, i], data, jacobian=False)[0] for i in range(n))
+            return np.array([0.5 * float(r @ r) for r in rs])
         if n not in self._batch:
             self._batch[n] = self.obj_fn.map(n, "serial")
         return np.asarray(self._batch[n](Z, self._p)).ravel()
