@@ -37,6 +37,7 @@ __all__ = [
     "frf_dynamic_stiffness",
     "modal_parameters",
     "channel_frfs",
+    "BASE_DOF",
 ]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
@@ -193,14 +194,23 @@ def modal_parameters(M, C, K):
     return np.abs(s) / (2 * np.pi), -s.real / np.abs(s), Phi
 
 
+BASE_DOF = -1   # Channel.dof of a sensor on the base (floor 0)
+
+
 def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, r=None):
     """FRF of each channel (objects with ``dof`` and ``output``): (n_ch, N) complex.
 
-    r : ground influence vector (default all ones).
+    r : ground influence vector (default all ones). A channel on the base
+    (``dof == BASE_DOF``) of this fixed-base model moves with the ground: its
+    absolute accelerance is 1 (relative outputs are 0).
     """
     out = {}
     rows = []
     for ch in channels:
+        if ch.dof == BASE_DOF:
+            rows.append(np.full(np.size(omega), 1.0 if ch.output == "absolute_accelerance" else 0.0,
+                                dtype=complex))
+            continue
         if ch.output not in out:
             out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output,
                                                    r)
