@@ -47,21 +47,28 @@ def bound_flag(name, value, lower, upper, unit, se_key):
                       "identifiability.weak_directions)"}
 
 
-def iteration_flag(best, results, solver):
+def iteration_flag(best, results, solver, agreed=0):
     """Flag a search whose answer may lie beyond a solver limit, or None.
 
-    The best start (a converged one) is flagged when it stopped at an iteration
-    or time limit itself, or when a start that stopped at a limit had already
-    reached a lower objective: that start was still descending where the best
-    one is reported.
+    The best start is flagged when it stopped at an iteration or time limit
+    itself (it is the best only when ``agreed`` >= 3 starts reached the same
+    objective, :func:`nlp.search.agreed_minimum`), or when a start that stopped
+    at a limit had already reached a lower objective: that start was still
+    descending where the best one is reported.
     """
     key = "ipopt.max_iter" if solver == "ipopt" else "max_iter"
     advice = (f"raise solver.options.{key}, run more starts (--starts), and if it persists "
               "look for a weakly identified combination (identifiability) or a wrong model")
     if best.status in LIMIT_STATUSES:
-        return {"kind": "iteration_limit", "subject": "best start",
-                "message": f"the best start stopped at the solver's limit ({best.status}, "
-                           f"{best.iterations} iterations): it may not be at an optimum",
+        msg = (f"the best start stopped at the solver's limit ({best.status}, "
+               f"{best.iterations} iterations): it may not be at an optimum")
+        if agreed:
+            msg = (f"no start met the solver's tolerance: the best stopped at its limit "
+                   f"({best.status}, {best.iterations} iterations), where {agreed} independent "
+                   "starts reach the same objective (within 0.1 in chi-square); the objective's minimum is "
+                   "reached, but parameters along weakly identified combinations are not "
+                   "determined (their spread over those starts is in the result)")
+        return {"kind": "iteration_limit", "subject": "best start", "message": msg,
                 "advice": advice}
     lower = [r for r in results if r.status in LIMIT_STATUSES and np.isfinite(r.f)
              and r.f < best.f]

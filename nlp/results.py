@@ -105,7 +105,8 @@ def summarize(case, problem, search):
     Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation,
                       tg.force_dof, tg.ground_r)
     cfg = case.config
-    limit = iteration_flag(search.best, search.results, cfg.solver.name)
+    limit = iteration_flag(search.best, search.results, cfg.solver.name,
+                           agreed=len(search.agreed))
     if limit:
         flags.append(limit)
     return {
@@ -136,6 +137,8 @@ def summarize(case, problem, search):
                    "interrupted": search.interrupted, "seconds": search.seconds,
                    "starts_within_1pct_of_best": len(near),
                    "starts_resumed": search.resumed,
+                   # starts that stopped at a limit but agree on the minimum (search.agreed_minimum)
+                   "starts_agreeing_at_limit": list(search.agreed),
                    # success: converged (only those compete); f is null for a failed solve
                    "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
                                "success": r.success, "status": r.status,

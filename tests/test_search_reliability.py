@@ -139,7 +139,7 @@ def _lines(path):
 
 
 @pytest.mark.parametrize("workers,sig", [
-    (1, signal.SIGINT),
+    pytest.param(1, signal.SIGINT, marks=pytest.mark.slow),  # 20-40 s each
     pytest.param(2, signal.SIGINT, marks=pytest.mark.slow),
     pytest.param(2, signal.SIGTERM, marks=pytest.mark.slow)])
 def test_signal_keeps_finished_starts_and_resume_gives_same_best(case_path, problem, tmp_path,
