@@ -112,7 +112,9 @@ def make(seed=0, noise=0.02, out=CASE):
         "data": {"file": "frf.npz", "channels": [
             {"name": f"f{fl}{'a' if c == CORNER_A else 'b'}_{d}", "node": node(fl, c), "dof": d,
              "output": "accelerance", "column": i} for i, (fl, c, d) in enumerate(SENSORS)]},
-        "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.4, "fmax": 12.0},
+        # every point of 0.5-12 Hz: the half-power windows find only the 12 modes below 7 Hz,
+        # too few for 10 storeys (predicted standard errors up to 5.5 % instead of 0.4 %)
+        "frequencies": {"method": "all", "fmin": 0.5, "fmax": 12.0},
         "objective": {"residual": "log_magnitude"},
         "search": {"starts": 2, "seed": 0},
     }
