@@ -2,6 +2,7 @@
 
 import os
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -21,11 +22,13 @@ from .identify import SCALE_EXPLANATION, scale_null_space
 from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
+from .frf import BASE_DOF
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
-from .readers import read_frf, read_time_histories
+from .noise import noise_model
+from .readers import read_frf, read_frf_coherence, read_time_histories
 
-__all__ = ["Case", "assemble", "build_problem"]
+__all__ = ["Case", "assemble", "build_problem", "detection_noise"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +49,7 @@ class Case:
     n_averages: int = 1            # Welch segments averaged in the estimate (all records)
     quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
     has_phase: bool = True         # False for magnitude-only FRF files
+    noise: object = None           # noise.NoiseModel of H (per channel and frequency)
 
 
 # Imported models up to this size run on the dense symbolic FRF; larger ones stay sparse.
@@ -70,13 +74,10 @@ def _groups_cover(model):
     """True when the influence matrices add up to M0 and K0 (a shear frame). Otherwise a
     part of the model that no parameter scales (an imported model's other elements
     or masses) anchors the M-C-K scale."""
-    import scipy.sparse as sp
 
     def gap(A0, parts):
         rest = A0 - sum(parts) if parts else A0
-        rest = rest.toarray() if sp.issparse(rest) else np.asarray(rest)
-        a0 = A0.toarray() if sp.issparse(A0) else np.asarray(A0)
-        return np.abs(rest).max() <= 1e-9 * np.abs(a0).max()
+        return abs(rest).max() <= 1e-9 * abs(A0).max()  # abs() works on sparse and dense
 
     return gap(model.M0, list(model.M_infl)) and gap(model.K0, list(model.K_infl))
 
@@ -87,7 +88,10 @@ def _dof_index(cfg, model, key, floor, node, dof):
     if node is None:
         if floor > n:
             raise InputError(cfg.path, f"{key}.floor", f"a floor (DOF) number from 1 to {n}", floor)
-        return floor - 1
+        if floor == 0 and (cfg.excitation.type != "ground" or model.dofs):
+            raise InputError(cfg.path, f"{key}.floor", "a floor from 1 to n: a sensor on the base "
+                             "(floor 0) needs ground excitation of a floor model", floor)
+        return BASE_DOF if floor == 0 else floor - 1
     if not model.dofs:
         raise InputError(cfg.path, f"{key}.node", "a floor: this model has no node-to-DOF map "
                          "(model.dof_map, or an OpenSees script)", node)
@@ -328,7 +332,8 @@ def _read_data(cfg, path=None):
         if fmt == "auto":
             fmt = "npz" if path.endswith(".npz") else "complex"
         f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex", db_reference=d.db_reference)
-        return f, H * d.unit_factor, None, None, 1, None
+        coh, n_avg = read_frf_coherence(path, *H.shape)   # .npz may carry them (noise model)
+        return f, H * d.unit_factor, coh, None, n_avg or 1, None
     paths = [path] if path else list(d.records or (d.file,))
     est, rec, reports = _read_records(cfg, paths)
     return est.f, est.H, est.coherence, rec, est.n_averages, _merge_quality(reports)
@@ -377,7 +382,7 @@ def _detection_form(f, H, channels, excitation):
     return out
 
 
-def _select(cfg, f, H, channels, excitation, coherence=None):
+def _select(cfg, f, H, channels, excitation, coherence=None, sigma=None):
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -392,7 +397,7 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
     else:
         check_points_inside(cfg, f)
         try:
-            idx = _half_power(cfg, f, H, channels, excitation, coherence)
+            idx = _half_power(cfg, f, H, channels, excitation, coherence, sigma)
         except InputError as exc:  # freqsel names its argument; say which case key it is
             raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
@@ -414,13 +419,37 @@ def _frequency_error(cfg, f, exc):
     return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
 
 
-def _half_power(cfg, f, H, channels, excitation, coherence):
+def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
+    """Half-power selection on the detection form; sigma: std of ln|H| (n_ch, n_f), so
+    that a peak must stand out of the noise (carried over to the detection form)."""
     fc = cfg.frequencies
-    return select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
+    # a base sensor sees the modes only through a flexible base: peaks are looked for
+    # on the structure's channels
+    rows = [c for c, ch in enumerate(channels) if ch.dof != BASE_DOF] or list(range(len(channels)))
+    channels, H = [channels[c] for c in rows], H[rows]
+    coherence = None if coherence is None else coherence[rows]
+    sigma = None if sigma is None else sigma[rows]
+    det = _detection_form(f, H, channels, excitation)
+    sigma = detection_noise(f, H, det, channels, sigma)
+    return select_frequencies(f, det, k=fc.k,
                               coherence=coherence, min_coherence=fc.min_coherence,
                               bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                               min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
-                              fmax=fc.fmax)
+                              fmax=fc.fmax, sigma=sigma)
+
+
+def detection_noise(f, H, det, channels, sigma):
+    """Std of ln|det| from the std of ln|H| (n_ch, n_f): the jw powers leave it
+    unchanged, the +1 of a relative channel under ground input scales it by
+    |jw^p H| / |det|. None stays None."""
+    if sigma is None:
+        return None
+    jw = 2j * np.pi * f
+    power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.array([np.abs(H[c] * jw ** (2 - power[ch.output])) / np.abs(det[c])
+                          for c, ch in enumerate(channels)])
+    return sigma * np.nan_to_num(ratio, nan=1.0, posinf=1.0)
 
 
 def _nonempty(cfg, f, idx):
@@ -460,7 +489,8 @@ def assemble(cfg, channels=None, data_file=None):
         if c.output == "absolute_accelerance" and ex.type != "ground":
             raise InputError(cfg.path, f"{key}.output", "receptance, mobility or accelerance "
                              "(absolute_accelerance needs ground excitation)", c.output)
-        if c.output == "absolute_accelerance" and ground_r is not None and ground_r[dof] != 1:
+        if c.output == "absolute_accelerance" and ground_r is not None and dof != BASE_DOF \
+                and ground_r[dof] != 1:
             raise InputError(cfg.path, f"{key}.output", "a relative output (receptance, mobility, "
                              "accelerance): absolute_accelerance needs a DOF along the ground "
                              "motion", c.output)
@@ -477,7 +507,10 @@ def assemble(cfg, channels=None, data_file=None):
         H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
-    idx = _select(cfg, f, H, channels, ex.type, coherence)
+    noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
+                                        records=records, channels=tuple(channels),
+                                        n_averages=n_avg))
+    idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
     # damping after the selection: modal-basis damping takes the band's modes
     damping = _damping(cfg, model, float(f[idx].max()))
     params = _parameters(cfg, model, damping)
@@ -495,7 +528,8 @@ def assemble(cfg, channels=None, data_file=None):
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase)
+                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase,
+                noise=noise)
 
 
 def build_problem(case):
@@ -523,7 +557,7 @@ def _reduced_basis(case):
     """The reduced basis, after checking its FRF against the exact one at the initial model.
 
     Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
-    over the case's frequencies exceeds the data noise (median over channels
+    over the case's frequencies (every k-th, at most 40) exceeds the data noise (median over channels
     of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
     """
     from .diagnose import noise_sigma  # diagnose builds on this module
@@ -532,11 +566,16 @@ def _reduced_basis(case):
     full = LinearSystem.from_model(case.model, case.damping, tg)
     psi = reduced.basis(full, float(tg.omega.max()))
     z0 = case.params.z0
-    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, tg.omega)
+    # every k-th of the case's frequencies (at most 40): each exact point costs a full
+    # factorisation (0.3 s at 2,100 DOFs of a 3-D frame)
+    k = -(-tg.omega.size // 40)
+    w, weight = tg.omega[::k], tg.weight[:, ::k]
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, w)
     small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
-    rms, worst = reduced.log_error(exact, small.frf(z0, tg.omega), tg.weight)
+    rms, worst = reduced.log_error(exact, small.frf(z0, w), weight)
     noise = float(np.median(noise_sigma(case, case.selected)))
-    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise}
+    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise,
+            "points_checked": int(w.size)}
     if rms > noise:
         raise InputError(case.config.path, "model.frf_backend",
                          f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "

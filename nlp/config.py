@@ -90,7 +90,7 @@ class ExcitationConfig:
 @dataclass(frozen=True)
 class ChannelConfig:
     name: str                              # channel name (default ch1, ch2, ...)
-    floor: int                             # (required unless node and dof) 1 = lowest floor
+    floor: int                             # (required unless node and dof) 1 = lowest floor, 0 = base sensor
     output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
     column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
     weight: float = 1.0                    # weight of the channel's residuals [-]
@@ -120,7 +120,7 @@ class DataConfig:
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
     overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name)
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -529,9 +529,9 @@ def _dof_spec(rd, d, key, path):
     return v
 
 
-def _location(rd, d, path):
+def _location(rd, d, path, base=False):
     """(floor, node, dof): a floor (shear-frame shorthand, or a row of a matrix model)
-    or a node and DOF of an imported model."""
+    or a node and DOF of an imported model; base: floor 0 (the base) is allowed."""
     if "node" in d or "dof" in d:
         if "floor" in d:
             raise rd.err(f"{path}.floor", "either floor or node and dof, not both", d["floor"])
@@ -541,8 +541,11 @@ def _location(rd, d, path):
         return None, node, _dof_spec(rd, d, "dof", path)
     if "floor" not in d:
         raise rd.err(f"{path}.floor", "a floor number (required, 1-based), or node and dof")
-    return rd.number(d, "floor", f"{path}.floor", required=True, positive=True, integer=True), \
-        None, None
+    floor = rd.number(d, "floor", f"{path}.floor", required=True, integer=True)
+    if floor < (0 if base else 1):
+        raise rd.err(f"{path}.floor", "a floor number >= 1" + (" (0: a sensor on the base)" if base
+                                                                else ""), floor)
+    return floor, None, None
 
 
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
@@ -605,7 +608,7 @@ def _data(rd, d, base):
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
-        floor, node, dof = _location(rd, c, key)
+        floor, node, dof = _location(rd, c, key, base=True)
         w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         if records:
             if node is not None:
@@ -628,6 +631,14 @@ def _data(rd, d, base):
         scale, sign = _scale_sign(rd, c, key)
         out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
                                  node=node, dof=dof, scale=scale, sign=sign))
+    for i, c in enumerate(out):
+        # the base moves only with the ground: a fixed-base model predicts the input
+        # itself there, a flexible base (diagnose) the base DOF's absolute motion
+        if c.floor == 0 and c.output != "absolute_accelerance":
+            raise rd.err(f"data.channels[{i}].floor", "a floor >= 1; floor 0 (a sensor on the "
+                         "base) is an absolute acceleration under ground excitation "
+                         "(records: quantity acceleration with a ground_acceleration input; "
+                         "FRF files: output absolute_accelerance)", 0)
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):
@@ -644,7 +655,8 @@ def _data(rd, d, base):
     layout = _text_layout(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
-                      window=str(d.get("window", "hann")), validation_file=val,
+                      window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),
+                      validation_file=val,
                       validation_force_floor=vfloor, level_files=tuple(level_paths),
                       db_reference=dbref, records=tuple(rec_paths), **layout)
 

@@ -5,9 +5,8 @@ which stops with the verdict setup_error when the data contradict the case):
 
 1. the baseline update (the case's own model), with every residual divided by
    its noise level, so the objective is a chi-square;
-2. a noise model: from the coherence of H1 when the FRFs were averaged,
-   Var(ln|H1|) = (1 - g^2) / (2 n_d g^2); otherwise from the scatter of second
-   differences of ln|H| along frequency (robust, per channel);
+2. a noise model per channel and frequency, for the FRF's route (one-segment
+   transient, Welch averages, FRF file): :mod:`nlp.noise`;
 3. a residual map (channel x band): mean squared normalised residual in each
    fitted half-power window and in the held-out shoulders around it (points
    1-3 windows from a peak, never fitted);
@@ -31,6 +30,7 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
+from .noise import sigma_ln
 from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
@@ -64,20 +64,9 @@ LEVEL_Z = 5.0          # story-stiffness change between levels, in standard erro
 
 # ---------------------------------------------------------------------- noise
 def noise_sigma(case, idx):
-    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx))."""
-    n_ch = case.H.shape[0]
-    if case.coherence is not None:
-        nd = case.n_averages  # Welch segments of the estimate itself (estimate.FRFEstimate)
-        if nd > 1:
-            g2 = np.clip(case.coherence[:, idx], 1e-4, 1 - 1e-12)
-            return np.sqrt((1 - g2) / (2 * nd * g2)) + 1e-4
-    lo, hi = case.f[idx].min(), case.f[idx].max()
-    band = (case.f >= lo) & (case.f <= hi)
-    sig = np.empty(n_ch)
-    for c in range(n_ch):
-        d2 = np.diff(np.log(np.abs(case.H[c, band]) + 1e-300), 2)
-        sig[c] = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6)
-    return np.repeat(np.maximum(sig, 1e-4)[:, None], len(idx), axis=1)
+    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx)),
+    per frequency, from the noise model of the case's FRF route (nlp/noise.py)."""
+    return sigma_ln(case, idx)
 
 
 # ------------------------------------------------------------------ problems
@@ -439,7 +428,8 @@ def _nonlinearity(cfg, log):
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
-    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence), int)
+    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
+                                  c.noise.sigma_ln), int)
     held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
     sig = noise_sigma(c, held)
     before = float(np.mean(_normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
@@ -529,7 +519,7 @@ def _windows(cfg, case, mult):
         return case.selected
     c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
     idx = np.asarray(_half_power(c, case.f, case.H, case.channels, case.target.excitation,
-                                 case.coherence), int)
+                                 case.coherence, case.noise.sigma_ln), int)
     return idx[case.f[idx] > 0]
 
 
@@ -959,7 +949,8 @@ def _verdict(cfg, case, out, log, ctx):
                 f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
     if unconfirmed and verdict == "ambiguous":
         statements.append("The model is inadequate here: no candidate holds on every test of "
-                          "this structure, so none can be named (seen on this test only: "
+                          "this structure, so none can be named (not confirmed by the other "
+                          "tests: "
                           + "; ".join(_where(r) for r in unconfirmed) + ").")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "

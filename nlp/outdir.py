@@ -164,6 +164,14 @@ def _fsync_dir(path):
         os.close(fd)
 
 
+def _remove(path):
+    """Remove a folder, file or link if it exists (an old DIR.prev)."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path)
+    elif os.path.lexists(path):
+        os.unlink(path)
+
+
 def _note(path, text):
     with open(path, "w") as fh:
         fh.write(text)
@@ -181,15 +189,13 @@ def _commit(stage, out, interrupted):
     prev = prev_path(out)
     if os.path.isdir(out):
         if not _exchange(stage, out):
-            if os.path.lexists(prev):
-                shutil.rmtree(prev)
+            _remove(prev)
             os.rename(out, prev)
             os.rename(stage, out)
             _fsync_dir(os.path.dirname(out))
             return
         # stage now holds the previous result
-        if os.path.lexists(prev):
-            shutil.rmtree(prev)
+        _remove(prev)
         os.rename(stage, prev)
     else:
         os.rename(stage, out)
@@ -216,8 +222,7 @@ def output_folder(out, command="run"):
     stage = staging_path(out)
     handle = _Folder(stage)
     try:
-        if os.path.lexists(stage):  # left by a killed run: it never became a result
-            shutil.rmtree(stage)
+        _remove(stage)  # left by a killed run: it never became a result
         os.makedirs(stage)
         _note(os.path.join(stage, INCOMPLETE),
               f"frf-nlp {command} (process {os.getpid()}) is writing this folder, or was "

@@ -529,6 +529,36 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None, db_re
     return f, H * factor
 
 
+def read_frf_coherence(path, n_ch, n_f):
+    """Coherence and averaging count stored with FRFs in an .npz file, if any.
+
+    Optional arrays ``coherence`` (n_ch, n_f), in [0, 1], and ``n_averages``
+    (a positive number: the averages behind the FRFs, overlap-corrected if the
+    writer knew it). Other formats carry neither.
+
+    Returns
+    -------
+    coherence : ndarray (n_ch, n_f) or None
+    n_averages : float or None
+    """
+    path = _existing(path)
+    if path.suffix.lower() != ".npz":
+        return None, None
+    with np.load(path, allow_pickle=False) as z:
+        coh = np.atleast_2d(z["coherence"]).astype(float) if "coherence" in z.files else None
+        nav = np.ravel(z["n_averages"]) if "n_averages" in z.files else None
+    if coh is not None and (coh.shape != (n_ch, n_f) or not np.all(np.isfinite(coh))
+                            or coh.min() < 0 or coh.max() > 1):
+        raise InputError(path, "coherence", f"an array of values in [0, 1] shaped ({n_ch}, {n_f}) "
+                         "like H", got=f"shape {coh.shape}")
+    if nav is not None:
+        if nav.size != 1 or not np.isfinite(nav[0]) or not nav[0] > 0:
+            raise InputError(path, "n_averages", "one positive number (averages behind the FRFs)",
+                             got=nav.tolist())
+        nav = float(nav[0])
+    return coh, nav
+
+
 def write_uff58(path, x, data, kind="time", names=None, units=None):
     """Write records as UFF dataset 58 (ASCII, double precision), minimal.
 

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .case import _detection_form, assemble, build_problem
+from .case import _detection_form, assemble, build_problem, detection_noise
 from .checkpoint import Checkpoint, checkpoint_path
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
@@ -106,8 +106,10 @@ def _modes_of(model, case):
     M, K, C = model
     fc = case.config.frequencies
     det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
+    sigma = None if case.noise is None else \
+        detection_noise(case.f, case.H, det, case.channels, case.noise.sigma_ln)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
-                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase)
+                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase, sigma=sigma)
 
 
 def _log_quality(q, log):

@@ -20,7 +20,8 @@ log(median solve) against log(n) for n >= 64 (the growth exponent).
 Run:  python scripts/bench_scale.py [--sizes 4 8 16 ...] [--starts 3] [--seed 0]
       [--backend auto|dense|sparse|reduced] [--case CASE.yaml ...]
 --case adds imported-model cases (one `assemble` + local solves from z0; parameter
-error against the case folder's truth.json when it maps parameter names to values).
+error against the case folder's truth.json: {"alpha": {name: relative change}} or
+{name: physical value}).
 """
 
 import os
@@ -36,6 +37,8 @@ import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
 from nlp.damping import RayleighDamping  # noqa: E402
+from nlp.frf_backends import reduced  # noqa: E402
+from nlp.frf_backends.system import LinearSystem  # noqa: E402
 from nlp.model import shear_frame  # noqa: E402
 from nlp.parameters import Parameter, ParameterSet  # noqa: E402
 from nlp.problem import Channel, Target, UpdatingProblem  # noqa: E402
@@ -127,8 +130,14 @@ def cold_build(build):
 
 def run_frame(n, args):
     model, damping, params, target, truth, backend = frame_problem(n, args.seed, args.backend)
-    problem, build = cold_build(lambda: UpdatingProblem(model, damping, params, target,
-                                                        frf_backend=backend))
+    def build_frame():
+        basis = None
+        if backend == "reduced":  # fixed basis from the nominal model (nlp.frf_backends.reduced)
+            full = LinearSystem.from_model(model, damping, target)
+            basis = reduced.basis(full, float(target.omega.max()))
+        return UpdatingProblem(model, damping, params, target, frf_backend=backend, basis=basis)
+
+    problem, build = cold_build(build_frame)
     results = [problem.solve(z) for z in starts(problem, args.starts, args.seed)]
     best = min(results, key=lambda r: r.f)
     z_groups = best.z[:truth.size]  # the group variables come first (alpha, scale 1)
@@ -154,8 +163,11 @@ def run_case(path, args):
         with open(truth_file) as fh:
             truth = json.load(fh)
         theta = problem.theta(best.z)
-        errs = [abs(p.nominal * (1 + t) / truth[p.name] - 1) for p, t in zip(case.params.params, theta)
-                if p.group == "stiffness" and p.name in truth and not p.fixed]
+        rel = truth.get("alpha", {})  # relative changes, or physical values by name
+        errs = [abs((1 + t) / (1 + rel[p.name]) - 1) if p.name in rel else
+                abs(p.nominal * (1 + t) / truth[p.name] - 1)
+                for p, t in zip(case.params.params, theta)
+                if p.group == "stiffness" and not p.fixed and (p.name in rel or p.name in truth)]
         err = max(errs) if errs else float("nan")
     return {"n": case.model.n, "backend": problem.backend, "build": build,
             "solve": float(np.median([r.seconds for r in results])),

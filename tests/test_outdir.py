@@ -93,6 +93,17 @@ def test_input_error_inside_leaves_nothing(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+def test_a_file_named_like_prev_or_staging_is_replaced(tmp_path):
+    out = str(tmp_path / "out")
+    os.mkdir(out)
+    open(out + ".prev", "w").write("x")
+    open(out + ".staging", "w").write("x")
+    with outdir.output_folder(out) as stage:
+        open(os.path.join(stage, "a"), "w").write("new")
+    assert os.listdir(out) == ["a"] and os.path.isdir(out + ".prev")
+    assert sorted(os.listdir(tmp_path)) == ["out", "out.prev"]
+
+
 def test_interrupted_result_says_so_inside(tmp_path):
     out = str(tmp_path / "out")
     with outdir.output_folder(out) as stage:

@@ -77,7 +77,8 @@ class LinearSystem:
             b_infl = tuple(np.zeros(n) for _ in M_infl)
         E = np.zeros((n, len(target.channels)))
         for c, ch in enumerate(target.channels):
-            E[ch.dof, c] = 1.0
+            if ch.dof >= 0:  # a base sensor (BASE_DOF) reads no DOF: 0, +1 when absolute
+                E[ch.dof, c] = 1.0
         U = damping.U
         return cls(M0=M0, K0=_csc(model.K0), M_infl=M_infl,
                    K_infl=tuple(_csc(A) for A in model.K_infl),

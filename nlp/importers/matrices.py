@@ -24,6 +24,7 @@ import numpy as np
 import scipy.io
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ..checks import check_model_matrices
 from ..errors import InputError
@@ -134,14 +135,29 @@ def _as_int(v):
 
 
 def check_mass(M, path, key):
-    """Raise InputError unless M is symmetric positive definite (a massless DOF is not)."""
-    Md = M.toarray() if sp.issparse(M) else np.asarray(M)
-    try:
-        sla.cholesky(0.5 * (Md + Md.T), lower=True)
-    except np.linalg.LinAlgError:
+    """Raise InputError unless M is symmetric positive definite (a massless DOF is not).
+
+    Sparse M: the pivots of an LDL^T-like factorisation with a symmetric ordering and no
+    pivoting count the negative and zero eigenvalues (Sylvester's law of inertia).
+    """
+    if sp.issparse(M):
+        Ms = sp.csc_matrix(0.5 * (M + M.T))
+        try:
+            lu = spla.splu(Ms, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+            ok = np.all(lu.U.diagonal() > 0) and np.all(lu.perm_r == lu.perm_c)
+        except RuntimeError:  # exactly singular
+            ok = False
+    else:
+        Md = np.asarray(M)
+        try:
+            sla.cholesky(0.5 * (Md + Md.T), lower=True)
+            ok = True
+        except np.linalg.LinAlgError:
+            ok = False
+    if not ok:
         raise InputError(path, key, "a symmetric positive definite mass matrix (give every DOF "
-                         "some mass, e.g. rotational inertia, or condense massless DOFs out)") \
-            from None
+                         "some mass, e.g. rotational inertia, or condense massless DOFs out)")
 
 
 def _symmetric(A, path, key):
