@@ -293,7 +293,8 @@ def _finding_rows(items):
 def _diagnosis_report(out):
     dpath = os.path.join(out, "diagnosis.json")
     d = _load(dpath)
-    parts = _head(f"frf-nlp diagnosis: {d.get('case', os.path.basename(out))}")
+    folder = os.path.basename(os.path.normpath(out)).removesuffix(".staging")
+    parts = _head(f"frf-nlp diagnosis: {d.get('case', folder)}")
     parts.append(f"<p class='verdict'>Verdict: <b>{html.escape(d['verdict'].replace('_', ' '))}"
                  "</b></p>")
     parts.append("<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in d.get("summary", []))
