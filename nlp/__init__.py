@@ -8,8 +8,9 @@ of the state-space system at each frequency, solved as a CasADi NLP.
 Modules (one concept each)
 --------------------------
 model, parameters   nominal matrices, influence matrices, bounds/fix/tie
-damping             general (Cholesky), Rayleigh, modal damping
-frf, frf_symbolic   numpy reference FRFs; the CasADi FRF used in the NLP
+damping             general (Cholesky), Rayleigh, modal, general on band modes, dashpots
+frf                 numpy reference FRFs
+frf_backends        the FRF inside the NLP: dense (CasADi SX), sparse, reduced
 problem, codegen    the NLP built once; compiled per-frequency pieces
 search              scatter search over start points
 identify            identifiability (Jacobian SVD, scale null space), errors
@@ -22,5 +23,12 @@ config, case        typed case file; assembling a case into a problem
 results, plots      result files and figures; report (report.html)
 workflow, cli       one run of a case; the ``frf-nlp`` command
 """
+
+import os
+
+# Small matrix products dominate the numeric FRF backends; a multi-threaded BLAS
+# on a busy 2-core machine made a 66 x 66 product 500x slower (measured). Set before
+# numpy loads (the CLI imports nlp first); an explicit user setting wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 __version__ = "0.1.0"

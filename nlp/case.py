@@ -2,22 +2,33 @@
 
 import os
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 
-from .damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
+from .damping import (DashpotDamping, GeneralDamping, ModalDamping, ModalGeneralDamping,
+                      RayleighDamping, band_modes, rayleigh_from_ratios)
+from .checks import (check_coherence, check_data_points, check_free_parameters,
+                     check_frf_alive, check_model_matrices, check_points_inside,
+                     check_record_alive, check_start_residuals, check_total_mass)
 from .config import Multiplier
 from .errors import InputError
 from .freqsel import select_frequencies
+from .frf_backends import choose as choose_backend
+from .frf_backends import reduced
+from .frf_backends.sparse import SparseFRF
+from .frf_backends.system import LinearSystem
 from .identify import SCALE_EXPLANATION, scale_null_space
 from .importers import dof_number, find_dof, ground_influence, load_model
 from .model import StructuralModel, shear_frame
 from .parameters import Parameter, ParameterSet
+from .frf import BASE_DOF
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
-from .readers import read_frf, read_time_histories
+from .noise import noise_model
+from .readers import read_frf, read_frf_coherence, read_time_histories
 
-__all__ = ["Case", "assemble", "build_problem"]
+__all__ = ["Case", "assemble", "build_problem", "detection_noise"]
 
 
 @dataclass(frozen=True)
@@ -38,6 +49,7 @@ class Case:
     n_averages: int = 1            # Welch segments averaged in the estimate (all records)
     quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
     has_phase: bool = True         # False for magnitude-only FRF files
+    noise: object = None           # noise.NoiseModel of H (per channel and frequency)
 
 
 # Imported models up to this size run on the dense symbolic FRF; larger ones stay sparse.
@@ -49,20 +61,23 @@ def _load_model(cfg):
     if m.type == "shear_frame":
         return shear_frame(m.masses, m.stiffnesses)
     model = load_model(m, cfg.path)
-    return model.dense() if model.n <= DENSE_MAX else model
+    if model.n > DENSE_MAX:
+        return model
+    model = model.dense()
+    # symmetric M0, K0 and groups, M0 PD, K0 PSD: named by the model file
+    src = m.file or m.script or (m.K.get("file") if isinstance(m.K, dict) else m.K) or cfg.path
+    check_model_matrices(src, model.M0, model.K0, model.M_infl, model.K_infl)
+    return model
 
 
 def _groups_cover(model):
     """True when the influence matrices add up to M0 and K0 (a shear frame). Otherwise a
     part of the model that no parameter scales (an imported model's other elements
     or masses) anchors the M-C-K scale."""
-    import scipy.sparse as sp
 
     def gap(A0, parts):
         rest = A0 - sum(parts) if parts else A0
-        rest = rest.toarray() if sp.issparse(rest) else np.asarray(rest)
-        a0 = A0.toarray() if sp.issparse(A0) else np.asarray(A0)
-        return np.abs(rest).max() <= 1e-9 * np.abs(a0).max()
+        return abs(rest).max() <= 1e-9 * abs(A0).max()  # abs() works on sparse and dense
 
     return gap(model.M0, list(model.M_infl)) and gap(model.K0, list(model.K_infl))
 
@@ -73,7 +88,10 @@ def _dof_index(cfg, model, key, floor, node, dof):
     if node is None:
         if floor > n:
             raise InputError(cfg.path, f"{key}.floor", f"a floor (DOF) number from 1 to {n}", floor)
-        return floor - 1
+        if floor == 0 and (cfg.excitation.type != "ground" or model.dofs):
+            raise InputError(cfg.path, f"{key}.floor", "a floor from 1 to n: a sensor on the base "
+                             "(floor 0) needs ground excitation of a floor model", floor)
+        return BASE_DOF if floor == 0 else floor - 1
     if not model.dofs:
         raise InputError(cfg.path, f"{key}.node", "a floor: this model has no node-to-DOF map "
                          "(model.dof_map, or an OpenSees script)", node)
@@ -105,13 +123,25 @@ def _ground_r(cfg, model):
     return ground_influence(model.dofs, d)
 
 
-def _damping(cfg, model):
+def _damping(cfg, model, f_max=None):
     d = cfg.damping
     M0, K0 = model.M0, model.K0
     if d.a0 is not None:
         a0, a1 = d.a0, d.a1
+    elif d.model in ("modal_general", "dashpots") or model.n > 400:
+        a0, a1 = _rayleigh_band(cfg, model, f_max)
     else:
         a0, a1 = rayleigh_from_ratios(M0, K0, d.zeta)
+    if d.model == "modal_general":
+        modes = d.modes or _band_mode_numbers(model, f_max)
+        z0 = d.modal_zeta or (d.zeta,) * len(modes)
+        if len(z0) != len(modes):
+            raise InputError(cfg.path, "damping.modal_zeta", f"{len(modes)} ratios, one per mode "
+                             f"in damping.modes {list(modes)}", list(z0))
+        return ModalGeneralDamping.from_model(M0, K0, modes, z0, a0, a1)
+    if d.model == "dashpots":
+        return DashpotDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3,
+                              K_groups=tuple(model.K_infl), group_names=tuple(model.alpha_names))
     if d.model == "rayleigh":
         return RayleighDamping(a0_ref=a0 if a0 > 0 else 1.0, a1_ref=a1 if a1 > 0 else 1e-3)
     if d.model == "modal":
@@ -122,6 +152,22 @@ def _damping(cfg, model):
         raise InputError(cfg.path, "damping.matrix" if d.matrix is not None else "damping",
                          "a symmetric positive definite initial damping matrix")
     return GeneralDamping(C0=C0)
+
+
+def _band_mode_numbers(model, f_max):
+    """1-based numbers of the nominal modes below 1.1 f_max (at least one)."""
+    omega, _ = band_modes(model.M0, model.K0, min(model.n, 30))
+    k = int(np.sum(omega / (2 * np.pi) <= 1.1 * f_max)) if f_max else omega.size
+    return tuple(range(1, max(k, 1) + 1))
+
+
+def _rayleigh_band(cfg, model, f_max):
+    """Rayleigh (a0, a1) with ratio damping.zeta at the first and the last band mode."""
+    modes = _band_mode_numbers(model, f_max)
+    omega, _ = band_modes(model.M0, model.K0, max(modes[-1], 2))
+    wi, wj = omega[0], omega[max(modes[-1], 2) - 1]
+    z = cfg.damping.zeta
+    return 2 * z * wi * wj / (wi + wj), 2 * z / (wi + wj)
 
 
 _UNIT = {"stiffness": "N/m", "mass": "kg"}
@@ -174,7 +220,7 @@ def _parameters(cfg, model, damping):
             params.append(Parameter(name, group, init, lo, hi, fixed=fixed, nominal=float(nom),
                                     unit=_UNIT[group] if physical else "x nominal"))
     d = cfg.damping
-    if isinstance(damping, GeneralDamping):
+    if isinstance(damping, (GeneralDamping, ModalGeneralDamping)):
         lo_d, hi_d = damping.default_bounds(d.diag_factor, d.offdiag)
     else:
         lo_d, hi_d = damping.default_bounds()
@@ -234,8 +280,16 @@ def _read_records(cfg, paths):
     spec = _record_spec(d)
     xs, ys, reports, first = [], [], [], None
     for path in paths:
-        rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
-                                  time_column=d.time_column, skip_rows=d.skip_rows)
+        try:
+            rec = read_time_histories(path, spec, fs=d.fs, columns=d.columns,
+                                      time_column=d.time_column, skip_rows=d.skip_rows)
+        except InputError as exc:  # a unit or column named in the case file: say which key
+            raise _case_key_error(cfg, exc) from None
+        check_record_alive(path, d.input["column"], rec.data["__input__"],
+                           f"data.input.column of {cfg.path}")
+        for i, c in enumerate(d.channels):
+            check_record_alive(path, c.column, rec.data[c.name],
+                               f"data.channels[{i}] of {cfg.path}")
         if first is not None and abs(rec.fs - first.fs) > 1e-9 * first.fs:
             raise InputError(path, "fs", f"the sampling rate of the first record ({first.fs:g} Hz)",
                              rec.fs)
@@ -256,8 +310,16 @@ def _read_records(cfg, paths):
         from .estimate import _default_nperseg
         nperseg = _default_nperseg(n)
         noverlap = int(d.overlap * nperseg)
-    est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
-                       noverlap=noverlap, window=d.window, source=paths[0])
+    try:
+        est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,
+                           noverlap=noverlap, window=d.window, source=paths[0])
+    except InputError as exc:  # segment settings come from the case file: name its key
+        if exc.key not in ("nperseg", "noverlap"):
+            raise
+        raise InputError(cfg.path, "data.nperseg" if exc.key == "nperseg" else "data.overlap",
+                         f"{exc.expected} (the records have {n} samples)", exc.got) from None
+    check_coherence(cfg, est.f, est.coherence, [c.column for c in d.channels],
+                    [f"data.channels[{i}]" for i in range(len(d.channels))], est.n_averages)
     return est, first, reports
 
 
@@ -270,7 +332,8 @@ def _read_data(cfg, path=None):
         if fmt == "auto":
             fmt = "npz" if path.endswith(".npz") else "complex"
         f, H = read_frf(path, fmt=fmt if fmt != "npz" else "complex", db_reference=d.db_reference)
-        return f, H * d.unit_factor, None, None, 1, None
+        coh, n_avg = read_frf_coherence(path, *H.shape)   # .npz may carry them (noise model)
+        return f, H * d.unit_factor, coh, None, n_avg or 1, None
     paths = [path] if path else list(d.records or (d.file,))
     est, rec, reports = _read_records(cfg, paths)
     return est.f, est.H, est.coherence, rec, est.n_averages, _merge_quality(reports)
@@ -291,6 +354,20 @@ def _merge_quality(reports):
                          reports[0][1].settings)
 
 
+def _case_key_error(cfg, exc):
+    """A records-file error about a channel spec, renamed to the case file's key."""
+    key = exc.key
+    if key.startswith("channels."):
+        _, name, *rest = key.split(".")
+        field = rest[0] if rest else "column"
+        if name == "__input__":
+            return InputError(cfg.path, f"data.input.{field}", exc.expected, exc.got)
+        for i, c in enumerate(cfg.data.channels):
+            if c.name == name:
+                return InputError(cfg.path, f"data.channels[{i}].{field}", exc.expected, exc.got)
+    return exc
+
+
 def _detection_form(f, H, channels, excitation):
     """Each channel as an accelerance, absolute for ground input (-w^2 H + 1 for a
     receptance): every mode peaks there, while the 1/w^2 fall of a receptance
@@ -305,7 +382,7 @@ def _detection_form(f, H, channels, excitation):
     return out
 
 
-def _select(cfg, f, H, channels, excitation, coherence=None):
+def _select(cfg, f, H, channels, excitation, coherence=None, sigma=None):
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -315,22 +392,64 @@ def _select(cfg, f, H, channels, excitation, coherence=None):
             mask &= f <= fc.fmax
         idx = np.nonzero(mask)[0]
     elif fc.method == "points":
+        check_points_inside(cfg, f)
         idx = np.unique([int(np.argmin(np.abs(f - p))) for p in fc.points])
     else:
+        check_points_inside(cfg, f)
         try:
-            idx = _half_power(cfg, f, H, channels, excitation, coherence)
+            idx = _half_power(cfg, f, H, channels, excitation, coherence, sigma)
         except InputError as exc:  # freqsel names its argument; say which case key it is
-            raise InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got) from None
+            raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
 
 
-def _half_power(cfg, f, H, channels, excitation, coherence):
+_FREQ_KEYS = {"k", "bands", "points", "fmin", "fmax", "n_peaks", "min_points_per_peak",
+              "min_coherence"}
+
+
+def _frequency_error(cfg, f, exc):
+    """A freqsel error named by a key that exists in the case file."""
+    if exc.key in _FREQ_KEYS:
+        return InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got)
+    if exc.key == "prominence_db":  # no resonance peak: the data, not a setting, is the cause
+        return InputError(cfg.path, "frequencies.method", "a method the data allow: half_power "
+                          f"needs a resonance peak, and {cfg.data.file} shows none in "
+                          f"{f[0]:g}-{f[-1]:g} Hz (check its record length and input, or use "
+                          "bands or all)", cfg.frequencies.method)
+    return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
+
+
+def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
+    """Half-power selection on the detection form; sigma: std of ln|H| (n_ch, n_f), so
+    that a peak must stand out of the noise (carried over to the detection form)."""
     fc = cfg.frequencies
-    return select_frequencies(f, _detection_form(f, H, channels, excitation), k=fc.k,
+    # a base sensor sees the modes only through a flexible base: peaks are looked for
+    # on the structure's channels
+    rows = [c for c, ch in enumerate(channels) if ch.dof != BASE_DOF] or list(range(len(channels)))
+    channels, H = [channels[c] for c in rows], H[rows]
+    coherence = None if coherence is None else coherence[rows]
+    sigma = None if sigma is None else sigma[rows]
+    det = _detection_form(f, H, channels, excitation)
+    sigma = detection_noise(f, H, det, channels, sigma)
+    return select_frequencies(f, det, k=fc.k,
                               coherence=coherence, min_coherence=fc.min_coherence,
                               bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                               min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
-                              fmax=fc.fmax)
+                              fmax=fc.fmax, sigma=sigma)
+
+
+def detection_noise(f, H, det, channels, sigma):
+    """Std of ln|det| from the std of ln|H| (n_ch, n_f): the jw powers leave it
+    unchanged, the +1 of a relative channel under ground input scales it by
+    |jw^p H| / |det|. None stays None."""
+    if sigma is None:
+        return None
+    jw = 2j * np.pi * f
+    power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.array([np.abs(H[c] * jw ** (2 - power[ch.output])) / np.abs(det[c])
+                          for c, ch in enumerate(channels)])
+    return sigma * np.nan_to_num(ratio, nan=1.0, posinf=1.0)
 
 
 def _nonempty(cfg, f, idx):
@@ -350,8 +469,6 @@ def assemble(cfg, channels=None, data_file=None):
     """
     model = _load_model(cfg)
     n = model.n
-    damping = _damping(cfg, model)
-    params = _parameters(cfg, model, damping)
     f, H, coherence, records, n_avg, quality = _read_data(cfg, data_file)
     ex = cfg.excitation
     force_dof = None
@@ -372,7 +489,8 @@ def assemble(cfg, channels=None, data_file=None):
         if c.output == "absolute_accelerance" and ex.type != "ground":
             raise InputError(cfg.path, f"{key}.output", "receptance, mobility or accelerance "
                              "(absolute_accelerance needs ground excitation)", c.output)
-        if c.output == "absolute_accelerance" and ground_r is not None and ground_r[dof] != 1:
+        if c.output == "absolute_accelerance" and ground_r is not None and dof != BASE_DOF \
+                and ground_r[dof] != 1:
             raise InputError(cfg.path, f"{key}.output", "a relative output (receptance, mobility, "
                              "accelerance): absolute_accelerance needs a DOF along the ground "
                              "motion", c.output)
@@ -382,12 +500,23 @@ def assemble(cfg, channels=None, data_file=None):
                       if channels is None or c.name in channels])
     channels, weights = chans, np.array([c.weight for c in cfg.data.channels
                                          if channels is None or c.name in channels])
+    if cfg.data.type == "frf":
+        check_frf_alive(cfg, H, rows)
     H = H[rows]
     if cfg.data.type == "frf":  # per-channel calibration of FRF files (time histories: readers)
         H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
-    idx = _select(cfg, f, H, channels, ex.type, coherence)
+    noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
+                                        records=records, channels=tuple(channels),
+                                        n_averages=n_avg))
+    idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
+    # damping after the selection: modal-basis damping takes the band's modes
+    damping = _damping(cfg, model, float(f[idx].max()))
+    params = _parameters(cfg, model, damping)
+    check_free_parameters(cfg.path, params)
+    check_total_mass(cfg.path, model, params, cfg.parameters.total_mass)
+    check_data_points(cfg, params, len(channels), idx.size, f)
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type, force_dof=force_dof,
@@ -399,7 +528,8 @@ def assemble(cfg, channels=None, data_file=None):
                          + SCALE_EXPLANATION)
     return Case(config=cfg, model=model, damping=damping, params=params, f=f, H=H,
                 channels=tuple(channels), selected=idx, target=target, coherence=coherence,
-                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase)
+                records=records, n_averages=n_avg, quality=quality, has_phase=cfg.data.has_phase,
+                noise=noise)
 
 
 def build_problem(case):
@@ -407,12 +537,51 @@ def build_problem(case):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
-        return UpdatingProblem(case.model, case.damping, case.params, case.target,
-                               residual=cfg.objective.residual, solver=solver,
-                               total_mass=cfg.parameters.total_mass)
-    except RuntimeError as exc:  # CasADi rejects an option: a case-file mistake
+        backend = choose_backend(cfg.model.frf_backend, case.model.n)
+        basis, info = _reduced_basis(case) if backend == "reduced" else (None, None)
+        problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                  residual=cfg.objective.residual, solver=solver,
+                                  total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                  basis=basis)
+        problem.reduced_info = info
+    except RuntimeError as exc:
+        if "option" not in str(exc).lower():  # not the user's options: a real failure
+            raise
         raise InputError(cfg.path, "solver.options", f"options that CasADi's {cfg.solver.name} "
                          f"accepts ({_casadi_reason(str(exc))})") from None
+    check_start_residuals(case, problem)
+    return problem
+
+
+def _reduced_basis(case):
+    """The reduced basis, after checking its FRF against the exact one at the initial model.
+
+    Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
+    over the case's frequencies (every k-th, at most 40) exceeds the data noise (median over channels
+    of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
+    """
+    from .diagnose import noise_sigma  # diagnose builds on this module
+
+    tg = case.target
+    full = LinearSystem.from_model(case.model, case.damping, tg)
+    psi = reduced.basis(full, float(tg.omega.max()))
+    z0 = case.params.z0
+    # every k-th of the case's frequencies (at most 40): each exact point costs a full
+    # factorisation (0.3 s at 2,100 DOFs of a 3-D frame)
+    k = -(-tg.omega.size // 40)
+    w, weight = tg.omega[::k], tg.weight[:, ::k]
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, w)
+    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
+    rms, worst = reduced.log_error(exact, small.frf(z0, w), weight)
+    noise = float(np.median(noise_sigma(case, case.selected)))
+    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise,
+            "points_checked": int(w.size)}
+    if rms > noise:
+        raise InputError(case.config.path, "model.frf_backend",
+                         f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "
+                         f"exact FRF by {rms:.3g} (RMS of ln|H| on the case's frequencies), more "
+                         f"than the data noise {noise:.3g}", "reduced")
+    return psi, info
 
 
 def _casadi_reason(text):

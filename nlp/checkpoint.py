@@ -56,7 +56,11 @@ class Checkpoint:
         self._fd = None
 
     def open(self, problem, config, starts):
-        """Start (or continue) the file; returns the finished starts it holds {index: result}."""
+        """Start (or continue) the file; returns the finished starts it holds {index: result}.
+
+        With ``resume``, an update whose file is missing beside the checkpoints of
+        earlier updates (the run stopped before reaching it) starts afresh.
+        """
         from .problem import LocalResult
 
         header = {"format": FORMAT, "hash": problem_hash(problem, starts), "seed": config.seed,
@@ -64,8 +68,12 @@ class Checkpoint:
                   "min_distance": config.min_distance}
         done = {}
         lines = []
-        if self.resume:
+        if self.resume and os.path.exists(self.path):
             lines = self._read(header)
+        elif self.resume and not os.path.isdir(os.path.dirname(self.path)):
+            raise InputError("<arguments>", "--resume", "a checkpoint of an interrupted run at "
+                             f"{self.path}; there is none (run without --resume)")
+        if lines:
             for rec in lines[1:]:
                 i = rec["start"]
                 done[i] = LocalResult(z=np.array(rec["z"], float),
@@ -84,9 +92,6 @@ class Checkpoint:
         return done
 
     def _read(self, header):
-        if not os.path.exists(self.path):
-            raise InputError("<arguments>", "--resume", "a checkpoint of an interrupted run at "
-                             f"{self.path}; there is none (run without --resume)")
         lines = []
         with open(self.path) as fh:
             for line in fh:

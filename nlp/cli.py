@@ -6,32 +6,47 @@ import sys
 
 from .errors import InputError, SearchFailed
 from .executors import EXECUTORS
+from .outdir import check_writable, locked_folder, output_folder, prev_path
 
 __all__ = ["main"]
 
 
+def _out(args, default):
+    """The --out folder, checked for writing before any work (creates nothing)."""
+    out = os.path.abspath(args.out or os.path.join(os.path.dirname(os.path.abspath(args.case)),
+                                                   default))
+    check_writable(out)
+    return out
+
+
 def _run(args):
     from .config import load_case
-    from .workflow import run
 
+    out = _out(args, "results")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": args.solver,
                                 "executor": args.executor, "scheduler": args.scheduler})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "results"))
-    return run(cfg, out, resume=args.resume)
+    from .workflow import run
+    with output_folder(out, "run") as stage:
+        status = run(cfg, stage, resume=args.resume, ckpt_out=out)
+        stage.interrupted = status == 130
+    print(f"wrote {out}: summary.json, result.json, parameters.csv, figures, report.html"
+          + (f" (previous result in {prev_path(out)})" if os.path.isdir(prev_path(out)) else ""))
+    return status
 
 
 def _diagnose(args):
     from .config import load_case
-    from .diagnose import diagnose
 
+    out = _out(args, "diagnosis")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
                                 "solver": None})
-    out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "diagnosis"))
+    from .diagnose import diagnose
     from .report import write_report
 
-    diagnose(cfg, out)
-    write_report(out)
+    with output_folder(out, "diagnose") as stage:
+        diagnose(cfg, stage)
+        write_report(stage)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png, report.html")
     return 0
 
@@ -51,7 +66,8 @@ def _batch(args):
 def _report(args):
     from .report import write_report
 
-    print(f"wrote {write_report(os.path.abspath(args.dir))}")
+    with locked_folder(os.path.abspath(args.dir)) as d:
+        print(f"wrote {write_report(d)}")
     return 0
 
 

@@ -17,6 +17,8 @@ import warnings
 
 import casadi as ca
 
+from .provenance import sha256_file as _sha256
+
 __all__ = ["cache_dir", "compile_library"]
 
 _FLAGS = ["-O2", "-fPIC", "-shared"]
@@ -48,8 +50,13 @@ def compile_library(functions, stem="frfnlp"):
     key = hashlib.sha1((src + " ".join(_FLAGS) + ca.__version__).encode()).hexdigest()[:16]
     root = cache_dir()
     lib = os.path.join(root, f"{stem}_{key}.so")
+    probe = functions[0].name()
     if os.path.exists(lib):
-        return lib
+        if _intact(lib, probe):
+            return lib
+        # a truncated, garbage or foreign file in the cache is our problem, not the user's
+        warnings.warn(f"cached library {lib} is damaged (size or sha256 does not match, or it "
+                      "does not load); rebuilding it")
     try:
         os.makedirs(root, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=root) as tmp:
@@ -59,8 +66,52 @@ def compile_library(functions, stem="frfnlp"):
             tmp_lib = os.path.join(tmp, "lib.so")
             subprocess.run([compiler, *_FLAGS, c_file, "-o", tmp_lib, "-lm"],
                            check=True, capture_output=True, timeout=600)
-            os.replace(tmp_lib, lib)  # atomic: concurrent builders never see a partial file
+            if not _loads(tmp_lib, probe):
+                raise OSError("the freshly compiled library does not load")
+            tmp_sum = os.path.join(tmp, "lib.sha256")
+            _write_sum(tmp_lib, tmp_sum)
+            # atomic renames: concurrent builders never see a partial file; the .so goes
+            # last so that a reader who finds it also finds its checksum
+            os.replace(tmp_sum, lib + ".sha256")
+            os.replace(tmp_lib, lib)
     except (OSError, subprocess.SubprocessError) as exc:
         warnings.warn(f"compiling CasADi functions failed ({exc}); running uncompiled")
         return None
     return lib
+
+
+def _loads(lib, name):
+    """True if CasADi can load function ``name`` from the shared library."""
+    try:
+        ca.external(name, lib)
+    except RuntimeError:
+        return False
+    return True
+
+
+def _intact(lib, name):
+    """The cached library matches its recorded sha256 and size, and loads."""
+    try:
+        with open(lib + ".sha256") as fh:
+            digest, size = fh.read().split()
+    except FileNotFoundError:  # cached before checksums existed: adopt it if it loads
+        if not _loads(lib, name):
+            return False
+        try:
+            _write_sum(lib, lib + ".sha256")
+        except OSError:
+            pass
+        return True
+    except (OSError, ValueError):
+        return False
+    if os.path.getsize(lib) != int(size) or _sha256(lib) != digest:
+        return False
+    return _loads(lib, name)
+
+
+def _write_sum(lib, path):
+    """Record sha256 and size of ``lib`` in ``path`` (atomically)."""
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w") as fh:
+        fh.write(f"{_sha256(lib)} {os.path.getsize(lib)}\n")
+    os.replace(tmp, path)

@@ -4,9 +4,10 @@ Every user mistake raises one :class:`nlp.errors.InputError` naming the file,
 the key and what is expected. See the README's case-file reference.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
+import re
 
 import yaml
 
@@ -20,6 +21,7 @@ __all__ = ["CaseConfig", "load_case", "ModelConfig", "ParameterConfig", "Damping
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
+FRF_BACKENDS = ("auto", "dense", "sparse", "reduced")   # nlp.frf_backends.BACKENDS
 
 
 MODEL_TYPES = ("shear_frame", "matrices", "opensees")
@@ -39,6 +41,7 @@ class ModelConfig:
     stiffness_groups: dict = field(default_factory=dict)   # name -> group / matrix spec
     mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
+    frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
 
 
 @dataclass(frozen=True)
@@ -64,7 +67,7 @@ class ParameterConfig:
 
 @dataclass(frozen=True)
 class DampingConfig:
-    model: str = "general"                 # general | rayleigh | modal
+    model: str = "general"                 # general | rayleigh | modal | modal_general | dashpots
     zeta: float = 0.02                     # initial Rayleigh ratio at modes 1 and n [-]
     a0: float = None                       # initial Rayleigh mass coefficient [1/s] (with a1)
     a1: float = None                       # initial Rayleigh stiffness coefficient [s] (with a0)
@@ -72,6 +75,7 @@ class DampingConfig:
     modal_zeta: tuple = None               # modal: initial damping ratio of each mode [-]
     diag_factor: float = 30.0              # general: bounds of L[i,i] as a factor of the start [-]
     offdiag: float = 3.0                   # general: bound of |L[i,j]| relative to the diagonal [-]
+    modes: tuple = None                    # modal_general: 1-based nominal modes (default: the band's)
 
 
 @dataclass(frozen=True)
@@ -86,7 +90,7 @@ class ExcitationConfig:
 @dataclass(frozen=True)
 class ChannelConfig:
     name: str                              # channel name (default ch1, ch2, ...)
-    floor: int                             # (required unless node and dof) 1 = lowest floor
+    floor: int                             # (required unless node and dof) 1 = lowest floor, 0 = base sensor
     output: str                            # FRF file (required): receptance | mobility | accelerance | absolute_accelerance
     column: object                         # FRF file: 0-based FRF index (default: list order); records: column name (default: name)
     weight: float = 1.0                    # weight of the channel's residuals [-]
@@ -116,7 +120,7 @@ class DataConfig:
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
     overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name)
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -185,6 +189,21 @@ class CaseConfig:
     search: SearchSection
     updates: dict = field(default_factory=dict)   # name -> channel names, averaged (Table 1)
     closeup_seconds: float = 3.0                  # (key: verification.closeup_seconds) close-up length [s]
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads YAML 1.2 floats too: ``2.552e6`` and ``1e-3`` are numbers
+    (YAML 1.1 wants a dot and a signed exponent, and would read them as text)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
 class _Reader:
@@ -267,8 +286,14 @@ def load_case(path, overrides=None):
     if not os.path.isfile(path):
         raise InputError(path, "<file>", "an existing case YAML file")
     try:
-        with open(path) as fh:
-            raw = yaml.safe_load(fh)
+        with open(path, "rb") as fh:
+            text = fh.read()
+        if b"\0" in text:
+            raise InputError(path, "<file>", "a YAML text file", "binary data")
+        raw = yaml.load(text.decode("utf-8"), Loader=_Loader)
+    except UnicodeDecodeError as exc:
+        raise InputError(path, "<file>", "a YAML text file in UTF-8",
+                         f"undecodable byte at position {exc.start}") from None
     except yaml.YAMLError as exc:
         raise InputError(path, "<file>", f"valid YAML ({str(exc).splitlines()[0]})") from None
     rd = _Reader(path)
@@ -302,8 +327,15 @@ def load_case(path, overrides=None):
 
 
 def _model(rd, d, base):
+    """The model section; ``frf_backend`` applies to every model type."""
+    backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
+    return replace(_model_kind(rd, d, base), frf_backend=backend)
+
+
+def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
-                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm"})
+                               "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
+                               "frf_backend"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
@@ -437,8 +469,9 @@ def _value_or_multiplier(rd, m, k, path, pair=False):
 
 def _damping(rd, d, n):
     rd.check_keys(d, "damping", {"model", "zeta", "a0", "a1", "matrix", "modal_zeta",
-                                 "diag_factor", "offdiag"})
-    model = rd.choice(d, "model", "damping.model", ("general", "rayleigh", "modal"), "general")
+                                 "diag_factor", "offdiag", "modes"})
+    model = rd.choice(d, "model", "damping.model",
+                      ("general", "rayleigh", "modal", "modal_general", "dashpots"), "general")
     out = dict(model=model)
     out["zeta"] = rd.number(d, "zeta", "damping.zeta", 0.02, positive=True)
     out["a0"] = rd.number(d, "a0", "damping.a0")
@@ -457,8 +490,17 @@ def _damping(rd, d, n):
         if n is not None and len(mat) != n:
             raise rd.err("damping.matrix", f"a {n}x{n} matrix (one row per floor)", f"{len(mat)} rows")
         out["matrix"] = mat
+    if "modes" in d:
+        modes = rd.numbers(d["modes"], "damping.modes", positive=True)
+        if any(int(k) != k for k in modes) or (n is not None and max(modes) > n) \
+                or len(set(modes)) != len(modes):
+            raise rd.err("damping.modes", f"distinct mode numbers from 1 to {n}", d["modes"])
+        out["modes"] = tuple(sorted(int(k) for k in modes))
     if "modal_zeta" in d:
-        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=n, positive=True)
+        length = len(out["modes"]) if model == "modal_general" and "modes" in out else \
+            (None if model == "modal_general" else n)
+        out["modal_zeta"] = rd.numbers(d["modal_zeta"], "damping.modal_zeta", length=length,
+                                       positive=True)
     out["diag_factor"] = rd.number(d, "diag_factor", "damping.diag_factor", 30.0, positive=True)
     out["offdiag"] = rd.number(d, "offdiag", "damping.offdiag", 3.0, positive=True)
     if out["diag_factor"] <= 1:
@@ -487,9 +529,9 @@ def _dof_spec(rd, d, key, path):
     return v
 
 
-def _location(rd, d, path):
+def _location(rd, d, path, base=False):
     """(floor, node, dof): a floor (shear-frame shorthand, or a row of a matrix model)
-    or a node and DOF of an imported model."""
+    or a node and DOF of an imported model; base: floor 0 (the base) is allowed."""
     if "node" in d or "dof" in d:
         if "floor" in d:
             raise rd.err(f"{path}.floor", "either floor or node and dof, not both", d["floor"])
@@ -499,8 +541,11 @@ def _location(rd, d, path):
         return None, node, _dof_spec(rd, d, "dof", path)
     if "floor" not in d:
         raise rd.err(f"{path}.floor", "a floor number (required, 1-based), or node and dof")
-    return rd.number(d, "floor", f"{path}.floor", required=True, positive=True, integer=True), \
-        None, None
+    floor = rd.number(d, "floor", f"{path}.floor", required=True, integer=True)
+    if floor < (0 if base else 1):
+        raise rd.err(f"{path}.floor", "a floor number >= 1" + (" (0: a sensor on the base)" if base
+                                                                else ""), floor)
+    return floor, None, None
 
 
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
@@ -563,7 +608,7 @@ def _data(rd, d, base):
         if name in names:
             raise rd.err(f"{key}.name", "a unique channel name", name)
         names.add(name)
-        floor, node, dof = _location(rd, c, key)
+        floor, node, dof = _location(rd, c, key, base=True)
         w = rd.number(c, "weight", f"{key}.weight", 1.0, positive=True)
         if records:
             if node is not None:
@@ -586,6 +631,14 @@ def _data(rd, d, base):
         scale, sign = _scale_sign(rd, c, key)
         out.append(ChannelConfig(name=name, floor=floor, output=output, column=col, weight=w,
                                  node=node, dof=dof, scale=scale, sign=sign))
+    for i, c in enumerate(out):
+        # the base moves only with the ground: a fixed-base model predicts the input
+        # itself there, a flexible base (diagnose) the base DOF's absolute motion
+        if c.floor == 0 and c.output != "absolute_accelerance":
+            raise rd.err(f"data.channels[{i}].floor", "a floor >= 1; floor 0 (a sensor on the "
+                         "base) is an absolute acceleration under ground excitation "
+                         "(records: quantity acceleration with a ground_acceleration input; "
+                         "FRF files: output absolute_accelerance)", 0)
     est = rd.choice(d, "estimator", "data.estimator", ("H1", "H2", "Hv"), "H1")
     nperseg = d.get("nperseg")
     if nperseg not in (None, "all"):
@@ -602,7 +655,8 @@ def _data(rd, d, base):
     layout = _text_layout(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
-                      window=str(d.get("window", "hann")), validation_file=val,
+                      window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),
+                      validation_file=val,
                       validation_force_floor=vfloor, level_files=tuple(level_paths),
                       db_reference=dbref, records=tuple(rec_paths), **layout)
 

@@ -5,9 +5,8 @@ which stops with the verdict setup_error when the data contradict the case):
 
 1. the baseline update (the case's own model), with every residual divided by
    its noise level, so the objective is a chi-square;
-2. a noise model: from the coherence of H1 when the FRFs were averaged,
-   Var(ln|H1|) = (1 - g^2) / (2 n_d g^2); otherwise from the scatter of second
-   differences of ln|H| along frequency (robust, per channel);
+2. a noise model per channel and frequency, for the FRF's route (one-segment
+   transient, Welch averages, FRF file): :mod:`nlp.noise`;
 3. a residual map (channel x band): mean squared normalised residual in each
    fitted half-power window and in the held-out shoulders around it (points
    1-3 windows from a peak, never fitted);
@@ -31,10 +30,13 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
+from .noise import sigma_ln
+from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                       extend_parameters, references)
 from .problem import SolverConfig, Target, UpdatingProblem
+from .provenance import provenance
 from .search import SearchConfig, scatter_search
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
                                  effect_terms, quasi_covariance, scaled_delta_bic, significance,
@@ -61,34 +63,10 @@ LEVEL_Z = 5.0          # story-stiffness change between levels, in standard erro
 
 
 # ---------------------------------------------------------------------- noise
-def _n_averages(cfg, records):
-    d = cfg.data
-    if records is None or d.nperseg in (None, "all"):
-        n = records.t.size if records is not None else 0
-        nper = n if d.nperseg == "all" else max(2 ** int(math.log2(max(n // 8, 1))), 1)
-    else:
-        n, nper = records.t.size, int(d.nperseg)
-    if records is None:
-        return 1
-    step = max(nper - int(d.overlap * nper), 1)
-    return max((n - nper) // step + 1, 1)
-
-
 def noise_sigma(case, idx):
-    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx))."""
-    n_ch = case.H.shape[0]
-    if case.coherence is not None:
-        nd = _n_averages(case.config, case.records)
-        if nd > 1:
-            g2 = np.clip(case.coherence[:, idx], 1e-4, 1 - 1e-12)
-            return np.sqrt((1 - g2) / (2 * nd * g2)) + 1e-4
-    lo, hi = case.f[idx].min(), case.f[idx].max()
-    band = (case.f >= lo) & (case.f <= hi)
-    sig = np.empty(n_ch)
-    for c in range(n_ch):
-        d2 = np.diff(np.log(np.abs(case.H[c, band]) + 1e-300), 2)
-        sig[c] = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6)
-    return np.repeat(np.maximum(sig, 1e-4)[:, None], len(idx), axis=1)
+    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx)),
+    per frequency, from the noise model of the case's FRF route (nlp/noise.py)."""
+    return sigma_ln(case, idx)
 
 
 # ------------------------------------------------------------------ problems
@@ -116,6 +94,38 @@ def _normalised(problem, z, case, idx, sigma):
     if case.config.objective.residual == "complex":
         return np.abs(d) / np.sqrt(2) / sigma
     return d.real / sigma
+
+
+class _Kept:
+    """Collects every finished start of a scatter search (the checkpoint interface)."""
+
+    def __init__(self):
+        self.results = {}
+
+    def open(self, problem, config, starts):
+        return {}
+
+    def append(self, i, res):
+        self.results[i] = res
+
+    def close(self):
+        pass
+
+
+def _search(problem, config):
+    """Scatter search; (best result, converged). When no start converged (a solver that
+    crawls along a weakly determined direction until its iteration limit), the lowest
+    objective reached is used, as every f is a true evaluation at a feasible point, and
+    converged is False (diagnosis.json says so)."""
+    from .errors import SearchFailed
+    kept = _Kept()
+    try:
+        return scatter_search(problem, config, progress=None, checkpoint=kept).best, True
+    except SearchFailed:
+        finite = [r for r in kept.results.values() if np.isfinite(r.f)]
+        if not finite:
+            raise
+        return min(finite, key=lambda r: r.f), False
 
 
 def _fit(problem, z0_list):
@@ -339,8 +349,7 @@ def _level_fit(cfg, path, z_start=None):
     sig = noise_sigma(c, c.selected)
     tg = _target(c, c.selected, sig)
     pr = _problem(c, tg)
-    sr = scatter_search(pr, SearchConfig(starts=6, seed=cfg.search.seed), progress=None)
-    res = sr.best
+    res, _ = _search(pr, SearchConfig(starts=6, seed=cfg.search.seed))
     if z_start is not None:
         alt = pr.solve(z_start)
         if alt.f < res.f:
@@ -419,7 +428,8 @@ def _nonlinearity(cfg, log):
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
-    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence), int)
+    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
+                                  c.noise.sigma_ln), int)
     held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
     sig = noise_sigma(c, held)
     before = float(np.mean(_normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
@@ -509,7 +519,7 @@ def _windows(cfg, case, mult):
         return case.selected
     c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
     idx = np.asarray(_half_power(c, case.f, case.H, case.channels, case.target.excitation,
-                                 case.coherence), int)
+                                 case.coherence, case.noise.sigma_ln), int)
     return idx[case.f[idx] > 0]
 
 
@@ -534,9 +544,13 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
+    check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
-    b_res = scatter_search(base, SearchConfig(starts=max(cfg.search.starts, 20),
-                                              seed=cfg.search.seed), progress=None).best
+    b_res, b_conv = _search(base, SearchConfig(starts=max(cfg.search.starts, 20),
+                                               seed=cfg.search.seed, workers=cfg.search.workers))
+    if not b_conv:
+        log("baseline: no start met the solver's convergence test (iteration limit); the "
+            "lowest objective reached is used")
     n_fit = base.n_used
     chi_b = 2 * b_res.f
     nu = max(n_fit - base.params.n_z, 1)
@@ -611,7 +625,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed,
            "whole": whole, "phi": phis[0] if phis else 1.0,
-           "screening": screening and screening["report"]}
+           "screening": screening and screening["report"], "baseline_converged": b_conv}
     return _verdict(cfg, case, out, log, ctx)
 
 
@@ -900,7 +914,8 @@ def _verdict(cfg, case, out, log, ctx):
     fit, held, sig_fit, sig_held = ctx["fit"], ctx["held"], ctx["sig_fit"], ctx["sig_held"]
     cells_after, _, _ = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
     k = improved.params.n_z - base.params.n_z
-    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b}
+    fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b,
+                  "converged": ctx["baseline_converged"]}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
     if nonlin_found and not found:
@@ -934,7 +949,8 @@ def _verdict(cfg, case, out, log, ctx):
                 f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
     if unconfirmed and verdict == "ambiguous":
         statements.append("The model is inadequate here: no candidate holds on every test of "
-                          "this structure, so none can be named (seen on this test only: "
+                          "this structure, so none can be named (not confirmed by the other "
+                          "tests: "
                           + "; ".join(_where(r) for r in unconfirmed) + ").")
     if remaining:
         statements.append("With this added, residuals are still above the noise: more is "
@@ -970,7 +986,7 @@ def _verdict(cfg, case, out, log, ctx):
               "residual_map": {"before": ctx["cells"], "after": cells_after},
               "whole_band": whole,
               "extra_modes": whole["extra_modes"] if whole else [],
-              "suggested_measurements": suggestions}
+              "suggested_measurements": suggestions, "provenance": provenance(cfg)}
     if ctx.get("screening") is not None:
         result["screening"] = ctx["screening"]
     os.makedirs(out, exist_ok=True)

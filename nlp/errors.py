@@ -32,11 +32,22 @@ class InputError(ValueError):
         self.got = got
         msg = f"{self.file}: '{self.key}': expected {expected}"
         if got is not None:
-            text = repr(got)
+            text = repr(_plain(got))
             if len(text) > 80:
                 text = text[:77] + "..."
             msg += f", got {text}"
         super().__init__(msg)
+
+
+def _plain(x):
+    """Numbers as plain Python values, so messages read 1019.0, not np.float64(1019.0)."""
+    if hasattr(x, "tolist") and callable(x.tolist):  # numpy scalars and arrays
+        return x.tolist()
+    if isinstance(x, (list, tuple)):
+        return type(x)(_plain(v) for v in x)
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    return x
 
 
 class SearchFailed(RuntimeError):

@@ -5,6 +5,7 @@ damping information, so the updating uses the peak areas only: the
 half-power band of each resonance, widened by a factor ``k``.
 """
 
+import math
 import os
 
 import numpy as np
@@ -42,7 +43,8 @@ def _summed_mag(H):
     return np.sum(np.abs(H), axis=0)
 
 
-def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_level=None):
+def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_level=None,
+               sigma=None, z_noise=5.0):
     """Resonance peaks of the FRF magnitudes (each channel and their sum).
 
     Parameters
@@ -61,12 +63,21 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
         Ignore peaks of a channel whose magnitude is below this (e.g. 1 for
         absolute-acceleration transmissibility, where resonances amplify and
         noise-made bumps above the last mode do not).
+    sigma : array_like, shape (n_ch, n_f), optional
+        Standard deviation of ln|H| (:mod:`nlp.noise`); default: the robust
+        local scatter of each curve along frequency.
+    z_noise : float
+        A peak must stand out of the noise: its height in ln|H| above the
+        median of the curve within +-5 % of its frequency must exceed
+        ``z_noise`` standard deviations of the noise at the peak.
 
     Returns
     -------
     ndarray of int
         Indices into ``f`` of the peaks, sorted by frequency.
     """
+    from .noise import local_scatter
+
     f, H = _check_fh(f, H)
     if n_peaks is not None and (int(n_peaks) != n_peaks or n_peaks < 1):
         raise InputError(_SRC, "n_peaks", "a positive integer", got=n_peaks)
@@ -79,8 +90,16 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     # channels (or a peak of the channel sum).
     mags = np.abs(np.atleast_2d(H))[:, sel]
     curves = np.vstack([mags, mags.sum(axis=0)[None]])
-    cands = []  # (index, prominence, curve number)
     n_curves = curves.shape[0]
+    # noise of ln|.| of each curve; the sum's is the magnitude-weighted channel noise
+    if sigma is None:
+        noise = local_scatter(f[sel], curves)[0]
+    else:
+        s_ch = np.atleast_2d(np.asarray(sigma, float))[:, sel]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s_sum = np.sqrt(np.sum((mags * s_ch) ** 2, axis=0)) / curves[-1]
+        noise = np.vstack([s_ch, np.nan_to_num(s_sum, nan=np.inf)[None]])
+    cands = []  # (index, prominence, curve number, significance)
     for c, mag in enumerate(curves):
         with np.errstate(divide="ignore"):
             db = 20.0 * np.log10(mag)
@@ -89,24 +108,34 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
             continue
         db[~finite] = db[finite].min() - 100.0  # zero magnitude: a deep notch, not a gap
         idx, props = signal.find_peaks(db, prominence=prominence_db)
+        prom = props["prominences"]
         if min_level is not None:
             keep = mag[idx] >= min_level * (n_curves - 1 if c == n_curves - 1 else 1)
-            idx, props = idx[keep], {"prominences": props["prominences"][keep]}
-        cands += [(i, p, c) for i, p in zip(idx, props["prominences"])]
+            idx, prom = idx[keep], prom[keep]
+        # height above the local median level (+-5 %), in noise standard deviations:
+        # the prominence would measure a noise bump from the deep notches beside
+        # it (ln|signal + noise| has a long lower tail), the median does not
+        signif = np.array([(db[i] - np.median(db[max(i - h, 0):i + h + 1])) * math.log(10) / 20
+                           for i, h in zip(idx, _half_widths(f[sel], idx))]) / noise[c, idx]
+        keep = signif >= z_noise
+        cands += [(i, p, c, z) for i, p, z in zip(idx[keep], prom[keep], signif[keep])]
     if not cands:
         return np.zeros(0, dtype=int)
-    cands.sort()
-    clusters = []
-    for i, p, c in cands:
-        if clusters and (i - clusters[-1][-1][0] <= 2
-                         or f[sel[i]] - f[sel[clusters[-1][-1][0]]] <= 0.02 * f[sel[i]]):
-            clusters[-1].append((i, p, c))
+    # Group around the most significant candidates, never by chaining neighbours:
+    # a chain of noise bumps would make one group spanning many hertz.
+    clusters = []  # [centre index, members]
+    for i, p, c, z in sorted(cands, key=lambda t: -t[3]):
+        for cl in clusters:
+            j = cl[0]
+            if abs(i - j) <= 2 or abs(f[sel[i]] - f[sel[j]]) <= 0.02 * f[sel[j]]:
+                cl[1].append((i, p, c))
+                break
         else:
-            clusters.append([(i, p, c)])
+            clusters.append([i, [(i, p, c)]])
     n_ch = mags.shape[0]
     need = n_ch // 2 + 1  # a strict majority of the channels
     idx, prom = [], []
-    for cl in clusters:
+    for _, cl in clusters:
         support = {c for _, _, c in cl}
         if n_ch in support or len(support) >= need:
             # rank by the channel sum's prominence where it sees the peak
@@ -117,7 +146,13 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     idx, prom = np.array(idx, dtype=int), np.array(prom)
     if n_peaks is not None and idx.size > n_peaks:
         idx = idx[np.argsort(prom)[::-1][: int(n_peaks)]]
-    return np.sort(sel[idx])
+    return np.unique(sel[idx])
+
+
+def _half_widths(f, idx, rel=0.05, min_bins=5):
+    """Half-width [bins] of the +-rel*f window around each index (at least min_bins)."""
+    df = np.gradient(f)
+    return [max(int(round(rel * f[i] / df[i])), min_bins) for i in idx]
 
 
 def _crossing(f, mag, i_peak, level, step):
@@ -224,7 +259,7 @@ def _band_points(f, bands):
 
 def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=None,
                        n_peaks=None, min_points_per_peak=5, fmin=None, fmax=None,
-                       prominence_db=6.0, min_level=None):
+                       prominence_db=6.0, min_level=None, sigma=None):
     """Indices of the frequency points used for updating.
 
     For each resonance peak of ``sum_ch |H|`` (see `find_peaks`), keep the
@@ -247,7 +282,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
         Needs ``coherence``.
     bands : list of (float, float), optional
         Explicit frequency bands [Hz].
-    n_peaks, fmin, fmax, prominence_db, min_level :
+    n_peaks, fmin, fmax, prominence_db, min_level, sigma :
         Passed to `find_peaks`.
     min_points_per_peak : int
 
@@ -266,7 +301,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
             raise InputError(_SRC, "min_points_per_peak", "a positive integer",
                              got=min_points_per_peak)
         peaks = find_peaks(f, H, n_peaks=n_peaks, prominence_db=prominence_db, min_level=min_level,
-                           fmin=fmin, fmax=fmax)
+                           fmin=fmin, fmax=fmax, sigma=sigma)
         if peaks.size == 0:
             raise InputError(_SRC, "prominence_db", "a setting that finds at least one peak "
                              "(lower it, widen fmin/fmax or give explicit bands)",

@@ -21,6 +21,9 @@ complex modes of the state-space system (Eqns 5, 15, 17), a direct solve of
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.sparse import csgraph
 
 __all__ = [
     "OUTPUTS",
@@ -34,6 +37,7 @@ __all__ = [
     "frf_dynamic_stiffness",
     "modal_parameters",
     "channel_frfs",
+    "BASE_DOF",
 ]
 
 OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
@@ -124,9 +128,50 @@ def frf_dynamic_stiffness(M, C, K, omega, excitation="ground", force_dof=None,
     """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b (r: ground influence)."""
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     b = load_vector(M, excitation, force_dof, r)
+    if M.shape[0] > LARGE_N:
+        return _apply_output(_solve_sparse(M, C, K, omega, b), omega, output)
     Z = K[None] - omega[:, None, None] ** 2 * M[None] + 1j * omega[:, None, None] * C[None]
     Hq = np.linalg.solve(Z, np.broadcast_to(b, (omega.size, b.size))[..., None])[..., 0].T
     return _apply_output(Hq, omega, output)
+
+
+# Above this many DOFs the stacked dense solve (N n^2 complex numbers) gives way to one
+# sparse factorisation per frequency, and modal_parameters to the lowest N_MODES_LARGE modes.
+LARGE_N = 400
+N_MODES_LARGE = 30
+
+
+def _solve_sparse(M, C, K, omega, b):
+    """q(w) of (K - w^2 M + jwC) q = b, one sparse LU per frequency: reverse Cuthill-McKee
+    ordering and no pivoting (-jZ has the positive definite Hermitian part wC)."""
+    Ms, Cs, Ks = (sp.csc_matrix(A) for A in (M, C, K))
+    pattern = sp.csr_matrix(abs(Ms) + abs(Cs) + abs(Ks))
+    p = csgraph.reverse_cuthill_mckee(pattern, symmetric_mode=True)
+    Mp, Cp, Kp = (A[p][:, p].tocsc() for A in (Ms, Cs, Ks))
+    Hq = np.empty((b.size, omega.size), complex)
+    bp = np.asarray(b, complex)[p]
+    for k, w in enumerate(omega):
+        lu = spla.splu((Kp - w**2 * Mp + 1j * w * Cp).tocsc(), permc_spec="NATURAL",
+                       diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        Hq[p, k] = lu.solve(bp)
+    return Hq
+
+
+def _lowest_complex_modes(M, C, K, k):
+    """The k complex pairs of smallest |s| of s A psi = -B psi (Eqn 5), by Arnoldi on
+    -B^-1 A (largest 1/|s|): only K is factorised, once, sparse."""
+    n = M.shape[0]
+    Ms, Cs, Ks = (sp.csc_matrix(A) for A in (M, C, K))
+    lk = spla.splu(Ks)
+
+    def op(x):  # -B^-1 A x = [-K^-1 (C x1 + M x2); x1]
+        x1, x2 = x[:n], x[n:]
+        y = Cs @ x1 + Ms @ x2
+        return np.concatenate([-(lk.solve(y.real) + 1j * lk.solve(y.imag)), x1])
+
+    L = spla.LinearOperator((2 * n, 2 * n), matvec=op, dtype=complex)
+    mu, V = spla.eigs(L, k=min(2 * k, 2 * n - 2), which="LM", tol=1e-10)
+    return 1.0 / mu, V
 
 
 def modal_parameters(M, C, K):
@@ -134,10 +179,14 @@ def modal_parameters(M, C, K):
 
     For each complex pair s = -zeta w +- j w sqrt(1 - zeta^2): f = |s| / 2pi,
     zeta = -Re(s) / |s|. Sorted by frequency; overdamped (real) roots are
-    dropped. Also returns the complex mode shapes phi (n, n_modes).
+    dropped. Also returns the complex mode shapes phi (n, n_modes). Above LARGE_N
+    DOFs only the N_MODES_LARGE lowest modes (sparse Arnoldi).
     """
     n = M.shape[0]
-    s, Psi = complex_modes(M, C, K)
+    if n > LARGE_N:
+        s, Psi = _lowest_complex_modes(M, C, K, N_MODES_LARGE)
+    else:
+        s, Psi = complex_modes(M, C, K)
     keep = s.imag > 0
     s, Phi = s[keep], Psi[:n, keep]
     order = np.argsort(np.abs(s))
@@ -145,14 +194,23 @@ def modal_parameters(M, C, K):
     return np.abs(s) / (2 * np.pi), -s.real / np.abs(s), Phi
 
 
+BASE_DOF = -1   # Channel.dof of a sensor on the base (floor 0)
+
+
 def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, r=None):
     """FRF of each channel (objects with ``dof`` and ``output``): (n_ch, N) complex.
 
-    r : ground influence vector (default all ones).
+    r : ground influence vector (default all ones). A channel on the base
+    (``dof == BASE_DOF``) of this fixed-base model moves with the ground: its
+    absolute accelerance is 1 (relative outputs are 0).
     """
     out = {}
     rows = []
     for ch in channels:
+        if ch.dof == BASE_DOF:
+            rows.append(np.full(np.size(omega), 1.0 if ch.output == "absolute_accelerance" else 0.0,
+                                dtype=complex))
+            continue
         if ch.output not in out:
             out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output,
                                                    r)

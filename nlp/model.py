@@ -22,9 +22,9 @@ class StructuralModel:
 
     Attributes
     ----------
-    M0, K0 : (n, n) ndarray
+    M0, K0 : (n, n) ndarray or scipy.sparse matrix
         Nominal mass [kg] and stiffness [N/m] matrices.
-    M_infl, K_infl : tuple of (n, n) ndarray
+    M_infl, K_infl : tuple of (n, n) ndarray or scipy.sparse matrix
         Influence matrices M0_r and K0_r of Eqns 23-24.
     beta_names, alpha_names : tuple of str
         One name per influence matrix (e.g. ``m1``, ``k1``).
@@ -109,7 +109,7 @@ def shear_stiffness(k):
     return K
 
 
-def shear_frame(masses, stiffnesses):
+def shear_frame(masses, stiffnesses, sparse=None):
     """Shear-frame model: one mass parameter per floor, one stiffness per story.
 
     Parameters
@@ -118,16 +118,50 @@ def shear_frame(masses, stiffnesses):
         Nominal floor masses [kg], floor 1 first.
     stiffnesses : array_like, (n,)
         Nominal story stiffnesses [N/m]; story 1 is between ground and floor 1.
+    sparse : bool, optional
+        Store every matrix as scipy.sparse.csc_matrix (default: when n > 400,
+        where 2n dense influence matrices would not fit in memory).
     """
     m = np.asarray(masses, dtype=float)
     k = np.asarray(stiffnesses, dtype=float)
     n = m.size
+    if sparse is None:
+        sparse = n > 400
+    if sparse:
+        return _sparse_shear_frame(m, k)
     eye = np.eye(n)
     return StructuralModel(
         M0=np.diag(m),
         K0=shear_stiffness(k),
         M_infl=tuple(np.diag(m[r] * eye[r]) for r in range(n)),
         K_infl=tuple(shear_stiffness(k[r] * eye[r]) for r in range(n)),
+        beta_names=tuple(f"m{r + 1}" for r in range(n)),
+        alpha_names=tuple(f"k{r + 1}" for r in range(n)),
+        beta_nominal=m.copy(),
+        alpha_nominal=k.copy(),
+        dof_names=tuple(f"floor{r + 1}" for r in range(n)),
+    )
+
+
+def _sparse_shear_frame(m, k):
+    """shear_frame with scipy.sparse CSC matrices (story r: 2 x 2 block on floors r-1, r)."""
+    import scipy.sparse as sp
+
+    n = m.size
+
+    def story(r, kr):
+        if r == 0:
+            return sp.csc_matrix(([kr], ([0], [0])), shape=(n, n))
+        i = [r - 1, r - 1, r, r]
+        j = [r - 1, r, r - 1, r]
+        return sp.csc_matrix(([kr, -kr, -kr, kr], (i, j)), shape=(n, n))
+
+    K_infl = tuple(story(r, k[r]) for r in range(n))
+    return StructuralModel(
+        M0=sp.diags(m, format="csc"),
+        K0=sp.csc_matrix(sum(K_infl)),
+        M_infl=tuple(sp.csc_matrix(([m[r]], ([r], [r])), shape=(n, n)) for r in range(n)),
+        K_infl=K_infl,
         beta_names=tuple(f"m{r + 1}" for r in range(n)),
         alpha_names=tuple(f"k{r + 1}" for r in range(n)),
         beta_nominal=m.copy(),

@@ -14,7 +14,7 @@ same DOFs measures shape agreement.
 import numpy as np
 
 from .freqsel import find_peaks, half_power_band, peak_curve
-from .frf import modal_parameters
+from .frf import BASE_DOF, modal_parameters
 from .metrics import mac, modal_errors
 
 __all__ = ["pick_modes", "compare_modes"]
@@ -31,16 +31,17 @@ def _receptance_form(f, H, channels):
     return out
 
 
-def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None):
+def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None, sigma=None):
     """Frequencies [Hz], damping ratios and shapes (n_ch, n_modes) of the peaks.
 
     detection : the FRFs in which to look for peaks (default H), e.g. the
-    accelerance form used for frequency selection.
+    accelerance form used for frequency selection; sigma : std of ln|detection|
+    (n_ch, n_f), the noise a peak must stand out of (`freqsel.find_peaks`).
     """
     D = H if detection is None else detection
     shapes = _receptance_form(f, H, channels)
     fr, zr, phi = [], [], []
-    for ip in find_peaks(f, D, fmin=fmin, fmax=fmax):
+    for ip in find_peaks(f, D, fmin=fmin, fmax=fmax, sigma=sigma):
         curve = peak_curve(f, D, ip)
         lo, hi = half_power_band(f, curve, ip)
         win = slice(max(ip - 2, 0), ip + 3)
@@ -51,18 +52,22 @@ def pick_modes(f, H, channels, detection=None, fmin=None, fmax=None):
     return np.array(fr), np.array(zr), np.array(phi).T.reshape(len(channels), len(fr))
 
 
-def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None, phase=True):
+def compare_modes(M, C, K, f, H, channels, detection=None, fmin=None, fmax=None, phase=True,
+                  sigma=None):
     """Peak-picked modes against the model's: one dict per measured mode.
 
     ``phase=False`` (magnitude-only data): frequency and damping only; the
-    MAC needs the quadrature part of the FRFs, so it is None.
+    MAC needs the quadrature part of the FRFs, so it is None. sigma : as in
+    `pick_modes`.
     """
-    f_x, z_x, phi_x = pick_modes(f, H, channels, detection, fmin, fmax)
+    f_x, z_x, phi_x = pick_modes(f, H, channels, detection, fmin, fmax, sigma)
     if f_x.size == 0:
         return []
     f_a, z_a, Phi = modal_parameters(M, C, K)
     ferr, _, pair = modal_errors(f_a, z_a, f_x, np.nan_to_num(z_x))
     dofs = [ch.dof for ch in channels]
+    Phi = np.array([Phi[d] if d != BASE_DOF else np.zeros(Phi.shape[1]) for d in dofs])
+    dofs = list(range(len(dofs)))
     rows = []
     for k in range(f_x.size):
         j = int(pair[k])

@@ -43,8 +43,12 @@ def new_figure(**kwargs):
 def save_figure(fig, path, dpi=110):
     """Write a figure atomically (temporary file, then rename); returns the path."""
     tmp = os.path.join(os.path.dirname(path) or ".", ".tmp-" + os.path.basename(path))
-    fig.savefig(tmp, dpi=dpi, format="png")
-    os.replace(tmp, path)
+    try:
+        fig.savefig(tmp, dpi=dpi, format="png")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):  # a failed save leaves no empty .tmp-* behind
+            os.unlink(tmp)
     return path
 
 

@@ -12,14 +12,17 @@ each selected frequency. Residual forms (per channel c, frequency k, weight w):
     magnitude       r = w (|H_a| - |H_x|) / rms_c|H_x|    (the paper's Eqn 25a)
     complex         r = w [Re, Im] (H_a - H_x) / |H_x|
 
-How it is built (measured, see DEVELOPERS.md fact 3): the residuals of one
+The FRF backend (:mod:`nlp.frf_backends`) decides how r and J are computed.
+Dense: how it is built (measured, see DEVELOPERS.md fact 3): the residuals of one
 frequency and their Jacobian are an SX function of (z, w, data), mapped over
 the frequency grid; the objective, gradient and Hessian functions are
 generated as one C file (the per-frequency code once, the maps as loops),
 compiled once and cached. IPOPT and sqpmethod receive the
 gradient J^T r and the Gauss-Newton Hessian J^T J of the least-squares
 objective. Everything that changes between solves (start point, data, bounds)
-enters as numbers; nothing symbolic is rebuilt per start.
+enters as numbers; nothing symbolic is rebuilt per start. Sparse and reduced:
+one numeric evaluation of r and J (sparse factorisations, adjoint
+sensitivities) per point, handed to the same NLP as CasADi callbacks.
 """
 
 from dataclasses import dataclass, field
@@ -29,7 +32,11 @@ import casadi as ca
 import numpy as np
 
 from .codegen import compile_library
-from .frf_symbolic import frf_symbolic
+from .frf import BASE_DOF
+from .frf_backends import choose as choose_backend
+from .frf_backends.dense import frf_symbolic
+from .frf_backends.sparse import SparseFRF
+from .frf_backends.system import LinearSystem
 
 __all__ = ["RESIDUALS", "SOLVERS", "Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
@@ -52,7 +59,11 @@ _DEFAULT_OPTIONS = {
 
 @dataclass(frozen=True)
 class Channel:
-    """A measured response: its name, 0-based DOF and output quantity."""
+    """A measured response: its name, 0-based DOF and output quantity.
+
+    ``dof == BASE_DOF`` (-1): a sensor on the base (floor 0). For a rigid base
+    its absolute acceleration is the ground input (absolute accelerance 1);
+    with a ``base_flexibility`` enrichment it is the base DOF's."""
 
     name: str
     dof: int
@@ -129,10 +140,15 @@ class UpdatingProblem:
     enrichments : sequence of :mod:`nlp.physics` families
         Added physics; their parameters are the last ("physics") entries of
         ``params``, in the same order. refs : reference values they scale by.
+    frf_backend : {"auto", "dense", "sparse", "reduced"}
+        See :mod:`nlp.frf_backends`; ``reduced`` needs ``basis``.
+    basis : (n, m) ndarray, optional
+        The reduced backend's fixed basis Psi (:func:`nlp.frf_backends.reduced.basis`).
     """
 
     def __init__(self, model, damping, params, target, residual="log_magnitude",
-                 solver=SolverConfig(), total_mass=None, enrichments=(), refs=None):
+                 solver=SolverConfig(), total_mass=None, enrichments=(), refs=None,
+                 frf_backend="auto", basis=None):
         if residual not in RESIDUALS:
             raise ValueError(f"residual must be one of {RESIDUALS}, got {residual!r}")
         if solver.name not in SOLVERS:
@@ -141,9 +157,16 @@ class UpdatingProblem:
         self.target, self.residual, self.solver_config = target, residual, solver
         self.total_mass = total_mass
         self.enrichments, self.refs = tuple(enrichments), dict(refs or {})
-        self._build_symbolic()
+        self.reduced_info = None
+        self.backend = choose_backend(frf_backend, model.n, self.enrichments)
         self._p = self._pack_data(target)
-        self._build_nlp()
+        if self.backend == "dense":
+            self._build_symbolic()
+            self._build_nlp()
+        else:
+            if self.backend == "reduced" and basis is None:
+                raise ValueError("the reduced backend needs a basis")
+            self._build_numeric(basis if self.backend == "reduced" else None)
 
     # ------------------------------------------------------------------ build
     def _model_matrices(self, z):
@@ -160,9 +183,12 @@ class UpdatingProblem:
         th = theta[self.params.physics_slice()]
         k = 0
         self._sensor = {}
+        self._base_dof = None
         for e in self.enrichments:
             th_e = th[k:k + len(e.names)]
             k += len(e.names)
+            if e.family == "base_flexibility":  # the DOF it appends is the base
+                self._base_dof = system["M"].shape[0]
             if hasattr(e, "apply"):
                 system = e.apply(system, th_e, ref)
             else:
@@ -192,7 +218,12 @@ class UpdatingProblem:
         for c, ch in enumerate(self.target.channels):
             if ch.output not in cache:
                 cache[ch.output] = frf_symbolic(Ma, Ca, Ka, w, b, ch.output, kh)
-            hr, hi = cache[ch.output][0][ch.dof], cache[ch.output][1][ch.dof]
+            if ch.dof == BASE_DOF and self._base_dof is None:   # rigid base: moves with the ground
+                hr = ca.SX(1.0 if ch.output == "absolute_accelerance" else 0.0)
+                hi = ca.SX(0.0)
+            else:
+                row = self._base_dof if ch.dof == BASE_DOF else ch.dof
+                hr, hi = cache[ch.output][0][row], cache[ch.output][1][row]
             for e, th_e in self._sensor.get(ch.name, ()):
                 hr, hi = e.output(hr, hi, w, th_e)
             out_r.append(hr)
@@ -293,6 +324,117 @@ class UpdatingProblem:
         self.ng = g.shape[0]
         self._batch = {}
 
+    def _data(self, p):
+        """(w, yr, yi, s, wt) arrays from the packed data vector."""
+        N = self.target.omega.size
+        n_ch = len(self.target.channels)
+        p = np.asarray(p, float).ravel()
+        blocks = [p[N + i * n_ch * N: N + (i + 1) * n_ch * N].reshape(n_ch, N, order="F")
+                  for i in range(4)]
+        return (p[:N], *blocks)
+
+    def _build_numeric(self, basis):
+        """Sparse or reduced backend: r and J from SparseFRF, the NLP's functions as callbacks."""
+        system = LinearSystem.from_model(self.model, self.damping, self.target)
+        if basis is not None:
+            system = system.project(basis)
+        self.evaluator = ev = SparseFRF(system, self.damping, self.params, self.target,
+                                        self.residual)
+        nz, npar = self.params.n_z, self._p.size
+        N = self.target.omega.size
+        self.n_res = len(self.target.channels) * (2 if self.residual == "complex" else 1)
+        n_r = self.n_res * N
+        ipopt = self.solver_config.name == "ipopt"
+
+        def rj(x, p):
+            return ev.cached(x, p.tobytes(), self._data(p))
+
+        def f_only(x, p):
+            # with J too: IPOPT asks for the gradient at the point it accepts, and the
+            # adjoint solves cost little next to the factorisations
+            r, _ = rj(x, p)
+            return 0.5 * float(r @ r)
+
+        def grad(x, p):
+            r, J = rj(x, p)
+            return 0.5 * float(r @ r), J.T @ r
+
+        def hess(x, p, lam_f, lam_g):
+            _, J = rj(x, p)
+            H = float(np.ravel(lam_f)[0]) * (J.T @ J)
+            return np.triu(H) if ipopt else H
+
+        dense = ca.Sparsity.dense
+        hsp = ca.Sparsity.upper(nz) if ipopt else dense(nz, nz)
+        x = ca.MX.sym("x", nz)
+        p = ca.MX.sym("p", npar)
+        sa, sb, sd = self.params.slices()
+        theta = ca.mtimes(ca.DM(self.params.T), x) + ca.DM(self.params.c)
+        if self.total_mass is not None:  # 1^T M 1 is linear in beta (Eqn 24)
+            s0 = float(self.model.M0.sum())
+            sr = ca.DM([float(A.sum()) for A in self.model.M_infl])
+            g = s0 + ca.dot(sr, theta[sb]) - self.total_mass if sr.numel() else ca.MX(s0 - self.total_mass)
+        else:
+            g = ca.MX(0, 1)
+        ng = g.shape[0]
+        grad_cb = _Callback("grad_f", lambda a: list(grad(*a)), [dense(nz, 1), dense(npar, 1)],
+                            [dense(1, 1), dense(nz, 1)])
+        self._callbacks = [
+            grad_cb,
+            # CasADi asks once for df/dx, df/dp (the final multipliers): grad_f answers
+            _Callback("objective", lambda a: [f_only(*a)], [dense(nz, 1), dense(npar, 1)],
+                      [dense(1, 1)], gradient=grad_cb),
+            _Callback("hess_lag", lambda a: [hess(*a)],
+                      [dense(nz, 1), dense(npar, 1), dense(1, 1), dense(ng, 1)], [hsp]),
+            _Callback("residuals", lambda a: list(rj(*a)), [dense(nz, 1), dense(npar, 1)],
+                      [dense(n_r, 1), dense(n_r, nz)]),
+        ]
+        named = {cb.name(): cb for cb in self._callbacks}
+        self.obj_fn, self.resjac_fn = named["objective"], named["residuals"]
+        opts = self.solver_config.nlpsol_options()
+        if ipopt:
+            opts["grad_f"] = named["grad_f"]
+            # Round-off of the numeric gradient (~1e-8 of its starting norm, more at
+            # thousands of DOFs) keeps the scaled dual infeasibility at 1e-7..3e-6 at the
+            # optimum; IPOPT then backtracks ~37 times per iteration on a flat objective for
+            # 10-15 iterations (measured at n = 256 and 2,000). Stop at a scaled error of 1e-5
+            # (the first time) and let the watchdog take over after 3 shortened steps.
+            user = {k if k.startswith("ipopt.") else "ipopt." + k for k in self.solver_config.options}
+            for key, value in (("ipopt.acceptable_iter", 1), ("ipopt.acceptable_tol", 1e-5),
+                               ("ipopt.watchdog_shortened_iter_trigger", 3)):
+                if key not in user:
+                    opts[key] = value
+        else:
+            gx = ca.jacobian(g, x)
+            jac_fg = ca.Function("jac_fg", [x, p], [*named["grad_f"](x, p), g, gx],
+                                 ["x", "p"], ["f", "grad", "g", "jac_g"])
+            self._callbacks.append(jac_fg)
+            opts["jac_fg"] = jac_fg
+        opts["hess_lag"] = named["hess_lag"]
+        opts["calc_lam_p"] = False  # d f / d p is never used; the callbacks have no derivatives
+        self.compiled = False
+        self._solver = ca.nlpsol("updater", self.solver_config.name,
+                                 {"x": x, "p": p, "f": self.obj_fn(x, p), "g": g}, opts)
+        self.ng = ng
+        self._batch = {}
+        self.matrices_fn = None
+
+    def describe(self):
+        """One line: which FRF backend runs and how."""
+        if self.backend == "dense":
+            return "dense FRF backend, " + ("compiled C" if self.compiled else "CasADi virtual machine")
+        ev = self.evaluator
+        how = ("batched dense LU" if ev.batched else
+               f"banded LU, half-bandwidth {ev.bandwidth}" if ev.banded else "SuperLU")
+        how += f", {ev.n} + {ev.m} unknowns"
+        text = f"{self.backend} FRF backend ({how}, adjoint sensitivities)"
+        info = getattr(self, "reduced_info", None)
+        if info:
+            text += (f"; {info['vectors']} basis vectors, RMS ln|H| error {info['rms_log_error']:.2g}"
+                     f" vs noise {info['noise']:.2g} at {info['points_checked']} of the case's"
+                     f" frequencies")
+        return text
+
     # ------------------------------------------------------------- numerics
     @property
     def z0(self):
@@ -310,6 +452,10 @@ class UpdatingProblem:
         """f at each column of Z (n_z, n_points), evaluated in one compiled loop."""
         Z = np.atleast_2d(np.asarray(Z, float))
         n = Z.shape[1]
+        if self.backend != "dense":  # residuals only: no adjoint solves for trial points
+            data = self._data(self._p)
+            rs = (self.evaluator.residuals(Z[:, i], data, jacobian=False)[0] for i in range(n))
+            return np.array([0.5 * float(r @ r) for r in rs])
         if n not in self._batch:
             self._batch[n] = self.obj_fn.map(n, "serial")
         return np.asarray(self._batch[n](Z, self._p)).ravel()
@@ -320,7 +466,14 @@ class UpdatingProblem:
         return np.asarray(r).ravel(), np.asarray(J)
 
     def matrices(self, z):
-        """Numeric M, K, C at z."""
+        """Numeric M, K, C at z (dense arrays)."""
+        if self.matrices_fn is None:
+            theta = self.theta(z)
+            sa, sb, sd = self.params.slices()
+            M, K = self.model.matrices(theta[sa], theta[sb])
+            C = self.damping.matrix(theta[sd], M, K)
+            return tuple(np.asarray(A.toarray() if hasattr(A, "toarray") else A, float)
+                         for A in (M, K, C))
         M, K, C = self.matrices_fn(np.asarray(z, float))
         return np.asarray(M), np.asarray(K), np.asarray(C)
 
@@ -329,6 +482,8 @@ class UpdatingProblem:
 
     def channel_frfs(self, z, omega):
         """The model's FRF of every channel (with added physics) at omega: (n_ch, N)."""
+        if self.backend != "dense":
+            return self.evaluator.frf(np.asarray(z, float), np.asarray(omega, float))
         key = ("frf", len(omega))
         if key not in self._batch:  # one map per grid size, built once
             self._batch[key] = self.frf_fn.map(len(omega))
@@ -350,3 +505,45 @@ class UpdatingProblem:
         return LocalResult(z=np.asarray(sol["x"]).ravel(), f=float(sol["f"]),
                            success=bool(st.get("success", False)), status=status,
                            iterations=iters, seconds=seconds, z0=z0c)
+
+
+class _Callback(ca.Callback):
+    """A CasADi function evaluated by Python (the numeric backends' r, J, f, gradient, Hessian)."""
+
+    def __init__(self, name, fn, sp_in, sp_out, gradient=None):
+        ca.Callback.__init__(self)
+        self._fn, self._in, self._out = fn, sp_in, sp_out
+        self.gradient = gradient  # a callback returning (f, df/dx) for a scalar f(x, p)
+        self.construct(name, {})
+
+    def get_n_in(self):
+        return len(self._in)
+
+    def get_n_out(self):
+        return len(self._out)
+
+    def get_sparsity_in(self, i):
+        return self._in[i]
+
+    def get_sparsity_out(self, i):
+        return self._out[i]
+
+    def has_jacobian(self):
+        return self.gradient is not None
+
+    def get_jacobian(self, name, inames, onames, opts):
+        x, p = (ca.MX.sym(f"a{i}", self._in[i]) for i in range(2))
+        out = ca.MX.sym("out", self._out[0])
+        _, g = self.gradient(x, p)
+        return ca.Function(name, [x, p, out], [g.T, ca.MX(1, self._in[1].size1())],
+                           inames, onames, opts)
+
+    def eval(self, args):
+        outs = self._fn([np.asarray(a.full() if hasattr(a, "full") else a) for a in args])
+        res = []
+        for sp_o, v in zip(self._out, outs):
+            v = np.atleast_2d(np.asarray(v, float))
+            if v.shape != (sp_o.size1(), sp_o.size2()):
+                v = v.reshape(sp_o.size1(), sp_o.size2())
+            res.append(ca.DM(v) if sp_o.is_dense() else ca.project(ca.DM(v), sp_o))
+        return res

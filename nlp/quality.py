@@ -155,7 +155,9 @@ def detect_glitches(x, spike_threshold=SPIKE_THRESHOLD, dropout_min_samples=DROP
     bad = np.zeros(x.size, bool)
     for a, b in _runs(near):
         a, b = max(a, 4), min(b, x.size - 4)
-        if b - a >= 5:
+        # a few spikes make short clusters; a long hot run is signal (a fast chirp
+        # against quiet rest portions) and would make the search combinatorial
+        if 5 <= b - a <= 40:
             bad[_resolve(x, a, b, limit)] = True
     out += [("spike", int(a), int(b)) for a, b in _runs(bad & ~stuck)]
     return sorted(out, key=lambda g: g[1])

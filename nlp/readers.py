@@ -188,8 +188,9 @@ def _load_columns(path, columns=None, skip_rows=0):
                 return {k: z[k] for k in z.files}
         if ext == ".mat":
             return {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
-    except (OSError, ValueError) as exc:
-        raise InputError(path, "format", f"a readable {ext} file", got=str(exc)) from exc
+    except Exception as exc:  # empty, truncated or corrupt (zipfile, EOF, OS errors)
+        raise InputError(path, "<file>", f"a readable {ext} file",
+                         got=f"{type(exc).__name__}: {exc}") from None
     if ext in _UFF_EXT:
         x, recs = _read_uff58(path, 1)
         cols = {r["id1"].strip(): np.asarray(r["data"], dtype=float) for r in recs}
@@ -494,12 +495,18 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None, db_re
                              got=db_reference)
         f, H = _frf_from_csv(path, fmt, delimiter, db_reference)
     elif ext == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in ("f", "H") if k not in z.files]
-            if missing:
-                raise InputError(path, missing[0], "arrays 'f' and 'H' in the .npz file",
-                                 got=z.files)
-            f, H = z["f"].astype(float), np.atleast_2d(z["H"]).astype(complex)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                missing = [k for k in ("f", "H") if k not in z.files]
+                if missing:
+                    raise InputError(path, missing[0], "arrays 'f' and 'H' in the .npz file",
+                                     got=z.files)
+                f, H = z["f"].astype(float), np.atleast_2d(z["H"]).astype(complex)
+        except InputError:
+            raise
+        except Exception as exc:  # empty, truncated or not a zip archive at all
+            raise InputError(path, "<file>", "a readable .npz file with arrays 'f' and 'H'",
+                             got=f"{type(exc).__name__}: {exc}") from None
     elif ext in _UFF_EXT:
         f, recs = _read_uff58(path, 4)
         H = np.array([np.asarray(r["data"], dtype=complex) for r in recs])
@@ -520,6 +527,36 @@ def read_frf(path, fmt="complex", columns=None, delimiter=None, unit=None, db_re
         H = H[[int(c) for c in columns]]
     factor = 1.0 if unit is None else frf_unit_factor(unit, file=path, key="unit")
     return f, H * factor
+
+
+def read_frf_coherence(path, n_ch, n_f):
+    """Coherence and averaging count stored with FRFs in an .npz file, if any.
+
+    Optional arrays ``coherence`` (n_ch, n_f), in [0, 1], and ``n_averages``
+    (a positive number: the averages behind the FRFs, overlap-corrected if the
+    writer knew it). Other formats carry neither.
+
+    Returns
+    -------
+    coherence : ndarray (n_ch, n_f) or None
+    n_averages : float or None
+    """
+    path = _existing(path)
+    if path.suffix.lower() != ".npz":
+        return None, None
+    with np.load(path, allow_pickle=False) as z:
+        coh = np.atleast_2d(z["coherence"]).astype(float) if "coherence" in z.files else None
+        nav = np.ravel(z["n_averages"]) if "n_averages" in z.files else None
+    if coh is not None and (coh.shape != (n_ch, n_f) or not np.all(np.isfinite(coh))
+                            or coh.min() < 0 or coh.max() > 1):
+        raise InputError(path, "coherence", f"an array of values in [0, 1] shaped ({n_ch}, {n_f}) "
+                         "like H", got=f"shape {coh.shape}")
+    if nav is not None:
+        if nav.size != 1 or not np.isfinite(nav[0]) or not nav[0] > 0:
+            raise InputError(path, "n_averages", "one positive number (averages behind the FRFs)",
+                             got=nav.tolist())
+        nav = float(nav[0])
+    return coh, nav
 
 
 def write_uff58(path, x, data, kind="time", names=None, units=None):

@@ -103,8 +103,11 @@ def _flags(d):
     if not flags:
         return ""
     return "<h2>Flags</h2><ul>" + "".join(
-        f"<li><b>{html.escape(str(f.get('subject', '')))}</b>: {html.escape(str(f.get('message', '')))}"
-        + (f" {html.escape(str(f['advice']))}" if f.get("advice") else "") + "</li>"
+        f"<li><b>{html.escape(str(f.get('subject', '')))}</b>"
+        + (f" ({html.escape(str(f['kind']))})" if f.get("kind") else "")
+        + f": {html.escape(str(f.get('message', '')))}"
+        + (f". What it means / what to do: {html.escape(str(f['advice']))}" if f.get("advice")
+           else "") + "</li>"
         for f in flags) + "</ul>"
 
 

@@ -8,6 +8,7 @@ import tempfile
 
 import numpy as np
 
+from .flags import bound_flag, iteration_flag
 from .frf import channel_frfs, modal_parameters
 from .identify import jacobian_report, standard_errors
 from .metrics import fdac
@@ -23,6 +24,7 @@ def write_atomic(path, data, mode="w"):
     os.makedirs(d, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; results are ordinary files
         with os.fdopen(fd, mode) as fh:
             fh.write(data)
         os.replace(tmp, path)
@@ -30,6 +32,12 @@ def write_atomic(path, data, mode="w"):
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def write_json(path, obj):
@@ -67,15 +75,25 @@ def summarize(case, problem, search):
     near = search.near_best
     spread = search.spread(problem.theta)
     rows = []
+    flags = []
     for i, p in enumerate(params.params):
         scale = p.nominal if p.nominal is not None else 1.0
+        se = 0.0 if p.fixed else float(scale * se_theta[i])
+        flag = None if p.fixed else bound_flag(
+            p.name, _physical(p, theta[i]), _physical(p, p.lower), _physical(p, p.upper),
+            UNITS[p.group], _bound_keys(p))
+        if flag:
+            flags.append(flag)
         rows.append({
             "name": p.name, "group": p.group, "unit": p.unit or UNITS[p.group],
             "initial": _physical(p, theta0[i]), "updated": _physical(p, theta[i]),
             "relative_change": float(theta[i]) if p.nominal is not None else None,
             "lower": _physical(p, p.lower), "upper": _physical(p, p.upper),
             "fixed": p.fixed, "tie": p.tie,
-            "standard_error": 0.0 if p.fixed else float(scale * se_theta[i]),
+            # at a bound the Gauss-Newton error does not hold: no number, say why
+            "standard_error": None if flag else se,
+            "at_bound": flag["bound"] if flag else None,
+            "standard_error_if_interior": se if flag else None,
             "spread_near_best": {"min": _physical(p, spread["min"][i]),
                                  "max": _physical(p, spread["max"][i])},
         })
@@ -87,8 +105,13 @@ def summarize(case, problem, search):
     Ha = channel_frfs(M, C, K, tg.omega, case.channels, tg.excitation,
                       tg.force_dof, tg.ground_r)
     cfg = case.config
+    limit = iteration_flag(search.best, search.results, cfg.solver.name,
+                           agreed=len(search.agreed))
+    if limit:
+        flags.append(limit)
     return {
         "case": cfg.name, "case_file": cfg.path,
+        "flags": flags,
         "excitation": {"type": tg.excitation,
                        "floor": None if tg.force_dof is None else tg.force_dof + 1},
         "residual": cfg.objective.residual,
@@ -114,12 +137,26 @@ def summarize(case, problem, search):
                    "interrupted": search.interrupted, "seconds": search.seconds,
                    "starts_within_1pct_of_best": len(near),
                    "starts_resumed": search.resumed,
+                   # starts that stopped at a limit but agree on the minimum (search.agreed_minimum)
+                   "starts_agreeing_at_limit": list(search.agreed),
                    # success: converged (only those compete); f is null for a failed solve
                    "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
                                "success": r.success, "status": r.status,
                                "iterations": r.iterations, "seconds": r.seconds}
                               for i, r in zip(search.indices, search.results)]},
     }
+
+
+def _bound_keys(p):
+    """The case-file keys that set a parameter's bounds."""
+    group = {"stiffness": "parameters.stiffness_bounds", "mass": "parameters.mass_bounds"}
+    return f"parameters.bounds.{p.name}" + (f" or {group[p.group]}" if p.group in group else "")
+
+
+def _cell(p, key):
+    if key == "standard_error" and p[key] is None:
+        return f"n/a (at {p.get('at_bound') or 'a'} bound)"
+    return f"{p[key]:.6g}"
 
 
 def parameters_table(result):
@@ -132,6 +169,6 @@ def parameters_table(result):
     for label, key in (("Initial", "initial"), ("Updated", "updated"),
                        ("Standard error", "standard_error"), ("Lower bound", "lower"),
                        ("Upper bound", "upper")):
-        w.writerow([label] + [f"{p[key]:.6g}" for p in cols])
+        w.writerow([label] + [_cell(p, key) for p in cols])
     w.writerow(["Fixed"] + ["yes" if p["fixed"] else "no" for p in cols])
     return buf.getvalue()

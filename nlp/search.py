@@ -64,6 +64,8 @@ class SearchResult:
     rel_tol: float = 0.01
     indices: list = None
     resumed: int = 0
+    agreed: tuple = ()
+
 
     def __post_init__(self):
         if self.indices is None:
@@ -73,8 +75,9 @@ class SearchResult:
     def near_best(self):
         """Converged results whose objective is within rel_tol (1 %) of the best."""
         fb = self.best.f
-        return [r for r in self.results
-                if r.success and r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
+        ok = set(self.agreed)
+        return [r for i, r in zip(self.indices, self.results)
+                if (r.success or i in ok) and r.f <= fb + self.rel_tol * abs(fb) + 1e-300]
 
     def spread(self, to_theta):
         """Min, max and std of each theta over the near-best starts."""
@@ -295,6 +298,10 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     indices = sorted(results)
     ordered = [results[i] for i in indices]
     good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
+    dof = getattr(problem, "n_used", 0) - len(problem.z0)
+    agreed = agreed_minimum(ordered, indices, rel=AGREE_CHI2 / max(dof, 1))
+    if agreed:
+        good = [(results[i].f, i) for i in agreed]
     if not good:
         if interrupted:
             raise KeyboardInterrupt("interrupted before any local solve converged")
@@ -303,7 +310,42 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     best = results[min(good)[1]]  # lowest f; the lowest start index on ties
     return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
                         interrupted=interrupted, seconds=time.perf_counter() - t0,
-                        indices=indices, resumed=resumed)
+                        indices=indices, resumed=resumed, agreed=tuple(agreed))
+
+
+AGREE_CHI2 = 0.1  # objectives closer than this in chi-square are one minimum
+AGREE_MIN = 3     # independent starts that must reach it
+
+
+def agreed_minimum(results, indices, rel=1e-4, n_min=AGREE_MIN):
+    """Starts that stopped at a solver limit below every converged objective, when
+    at least ``n_min`` independent starts agree on that objective within ``rel``.
+
+    The search uses rel = 0.1 / (residuals - parameters): with the noise
+    variance estimated from the fit, s^2 = 2 f / dof, objectives that differ by
+    rel f differ by 0.1 in chi-square, far below what the data can tell apart.
+
+    A weakly identified direction (a damping entry the data barely see) can make
+    IPOPT crawl until its iteration limit while the objective no longer moves:
+    then no start meets the tolerance, and a start that "converged" elsewhere
+    may sit far higher. Agreement of independent starts is the check that the
+    objective's minimum is reached (not the parameters along the weak
+    direction; the result flags that). Returns the indices of the agreeing
+    starts (converged ones included), or [] when the converged best stands.
+    """
+    from .flags import LIMIT_STATUSES
+
+    f_conv = min([r.f for r in results if r.success] or [np.inf])
+    stopped = [r.f for r in results
+               if not r.success and r.status in LIMIT_STATUSES and np.isfinite(r.f)]
+    if not stopped:
+        return []
+    f_low = min(stopped)
+    if not f_low < f_conv - rel * abs(f_conv):
+        return []
+    group = [i for i, r in zip(indices, results) if np.isfinite(r.f)
+             and (r.success or r.status in LIMIT_STATUSES) and r.f <= f_low + rel * abs(f_low)]
+    return group if len(group) >= n_min else []
 
 
 def default_workers():

@@ -36,7 +36,9 @@ def replay(M, C, K, records, data_config):
                     dof=None if ground else inp["floor"] - 1)
     out = {}
     for ch in data_config.channels:
-        sim = getattr(resp, _FIELD[ch.quantity])[ch.floor - 1]
+        # a sensor on the base (floor 0) of the fixed-base model records the ground input
+        sim = records.data["__input__"] if ch.floor == 0 else \
+            getattr(resp, _FIELD[ch.quantity])[ch.floor - 1]
         meas = records.data[ch.name]
         out[ch.name] = {"t": resp.t, "sim": sim, "meas": meas, "quantity": ch.quantity,
                         "nrmse": float(nrmse(sim, meas)),

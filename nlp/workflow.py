@@ -14,14 +14,16 @@ import time
 
 import numpy as np
 
-from .case import _detection_form, assemble, build_problem
+from .case import _detection_form, assemble, build_problem, detection_noise
 from .checkpoint import Checkpoint, checkpoint_path
 from .config import ExcitationConfig
 from .frf import channel_frfs, modal_parameters
+from .flags import replay_flags
 from .freqsel import plot_selection
 from .metrics import fdac, fdac_overall, frac
 from .peakpick import compare_modes
 from .plots import frf_quantity, plot_frf_overlays
+from .provenance import provenance
 from .report import write_report
 from .results import parameters_table, summarize, write_atomic, write_json
 from .executors import Setup
@@ -31,7 +33,7 @@ from .verify import plot_replay, replay
 __all__ = ["run"]
 
 
-def _update(cfg, label, channels, out, log, checkpoint=None):
+def _update(cfg, label, channels, out, log, prov, checkpoint=None):
     case = assemble(cfg, channels=channels)
     tag = f"[{label}] " if label else ""
     log(f"{tag}case {cfg.name}: {case.model.n} DOF, {case.params.n_z} free parameters, "
@@ -40,8 +42,7 @@ def _update(cfg, label, channels, out, log, checkpoint=None):
         f"residual {cfg.objective.residual}, solver {cfg.solver.name}")
     t0 = time.perf_counter()
     problem = build_problem(case)
-    log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s "
-        f"({'compiled C' if problem.compiled else 'CasADi virtual machine'})")
+    log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s ({problem.describe()})")
     s = cfg.search
     search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
                                                   seed=s.seed, workers=s.workers,
@@ -50,6 +51,7 @@ def _update(cfg, label, channels, out, log, checkpoint=None):
     if search.resumed:
         log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
     result = summarize(case, problem, search)
+    result["provenance"] = prov
     os.makedirs(out, exist_ok=True)
     write_json(os.path.join(out, "result.json"), result)
     table = parameters_table(result)
@@ -77,6 +79,13 @@ def _log_result(result, table, log, tag):
     for wk in result["identifiability"]["weak_directions"]:
         log(f"{tag}warning: weakly identified combination {wk['combination']} "
             f"(sigma ratio {wk['sigma_ratio']:.1e})")
+    _log_flags(result.get("flags", ()), log, tag)
+
+
+def _log_flags(flags, log, tag=""):
+    for fl in flags:
+        log(f"{tag}WARNING ({fl['kind']}): {fl['message']}")
+        log(f"{tag}  what it means / what to do: {fl['advice']}")
 
 
 def _fdac_of(model, case):
@@ -97,8 +106,10 @@ def _modes_of(model, case):
     M, K, C = model
     fc = case.config.frequencies
     det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
+    sigma = None if case.noise is None else \
+        detection_noise(case.f, case.H, det, case.channels, case.noise.sigma_ln)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
-                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase)
+                         fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase, sigma=sigma)
 
 
 def _log_quality(q, log):
@@ -127,19 +138,22 @@ def _table1(results, average):
     return "\n".join(lines) + "\n"
 
 
-def run(cfg, out, log=print, resume=False):
+def run(cfg, out, log=print, resume=False, ckpt_out=None):
     """Run a validated case into folder ``out``; returns the exit status (0 or 130).
 
     Every finished start is kept in ``out.partial/`` (:mod:`nlp.checkpoint`);
-    ``resume`` continues from it, and a completed run removes it.
+    ``resume`` continues from it, and a completed run removes it. ``ckpt_out``:
+    the final --out when ``out`` is its staging folder (:mod:`nlp.outdir`), so the
+    checkpoint lives beside the final folder, where ``--resume`` looks.
     """
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
+    prov = provenance(cfg)
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
-        ckpt = Checkpoint(checkpoint_path(out, label), resume=resume)
-        case, result, interrupted = _update(cfg, label, channels, d, log, ckpt)
+        ckpt = Checkpoint(checkpoint_path(ckpt_out or out, label), resume=resume)
+        case, result, interrupted = _update(cfg, label, channels, d, log, prov, ckpt)
         results[label] = (case, result)
         if interrupted:
             break
@@ -148,7 +162,9 @@ def run(cfg, out, log=print, resume=False):
     M, K, C = model
     fn, zeta, _ = modal_parameters(M, C, K)
     summary = {"case": cfg.name, "updates": [k for k in results if k is not None],
-               "interrupted": interrupted,
+               "interrupted": interrupted, "provenance": prov,
+               "flags": [dict(fl, update=label) for label, (_, r) in results.items()
+                         for fl in r.get("flags", ())],
                "model": {"M": M, "K": K, "C": C, "natural_frequencies_hz": fn,
                          "damping_ratios": zeta},
                "fdac": {}, "fdac_overall": {}, "frac": {}, "modes": {}}
@@ -210,12 +226,14 @@ def run(cfg, out, log=print, resume=False):
                                                                "peak_error")}
         log("time domain NRMSE: " + ", ".join(f"{k} {100 * v['nrmse']:.1f} %"
                                              for k, v in summary["time_domain"].items()))
+        rflags = replay_flags(summary["time_domain"])
+        summary["flags"] += rflags
+        _log_flags(rflags, log)
     write_json(os.path.join(out, "summary.json"), summary)
-    path = write_report(out)
-    log(f"wrote {out}: summary.json, result.json, parameters.csv, figures, {os.path.basename(path)}")
+    write_report(out)
     if interrupted:
-        log(f"interrupted: finished starts are kept in {os.path.dirname(checkpoint_path(out))}; "
-            "continue with --resume")
+        log(f"interrupted: finished starts are kept in "
+            f"{os.path.dirname(checkpoint_path(ckpt_out or out))}; continue with --resume")
         return 130
-    shutil.rmtree(os.path.dirname(checkpoint_path(out)), ignore_errors=True)
+    shutil.rmtree(os.path.dirname(checkpoint_path(ckpt_out or out)), ignore_errors=True)
     return 0

@@ -92,6 +92,7 @@ def campaign(tmp_path_factory):
     return case_dir, truth
 
 
+@pytest.mark.slow  # a campaign of updates: ~15 s
 def test_batch_finds_the_stiffness_drop(campaign, tmp_path):
     case_dir, truth = campaign
     out = tmp_path / "out"

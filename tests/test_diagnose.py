@@ -53,3 +53,9 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
                           "levels": levels}, seed=12)
     assert res["verdict"] == "adequate", res["findings"]
     assert res["findings"] == []
+    # provenance: the case file's sha256, recomputed here
+    import hashlib
+    prov = json.loads((tmp_path / "out" / "diagnosis.json").read_text())["provenance"]
+    case_file = str(tmp_path / "case" / "case.yaml")
+    assert prov["files"][case_file]["sha256"] == hashlib.sha256(
+        open(case_file, "rb").read()).hexdigest()

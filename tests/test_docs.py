@@ -69,3 +69,15 @@ def test_api_docs_build(tmp_path):
     page = (tmp_path / "nlp" / "estimate.html").read_text()
     assert "hv_tls" in page and "total-least-squares" in page
     assert pdoc.__version__ and os.path.isfile(tmp_path / "nlp" / "quality.html")
+
+
+def test_cli_version_and_help_give_defaults_and_exit_codes(capsys):
+    from nlp.cli import main
+
+    with pytest.raises(SystemExit) as ex:
+        main(["--version"])
+    assert ex.value.code == 0 and capsys.readouterr().out.strip() == f"frf-nlp {nlp.__version__}"
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = capsys.readouterr().out
+    assert "else 20" in text and "exit status" in text and "130" in text and "  3 " in text

@@ -184,3 +184,14 @@ def test_records_average_all_segments_like_one_long_record(records):
     assert one.n_averages == two.n_averages == 8
     np.testing.assert_allclose(two.H, one.H, rtol=1e-10)
     np.testing.assert_allclose(two.coherence, one.coherence, rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.parametrize("nperseg,noverlap", [(1024, None), (1024, 768), (1000, 0)])
+def test_averaging_count_is_the_number_of_welch_segments(records, nperseg, noverlap):
+    """n_averages equals the segments scipy.signal.spectrogram cuts with the same settings."""
+    x, y = records
+    est = estimate_frf(x, y, FS, nperseg=nperseg, noverlap=noverlap)
+    # spectrogram's default overlap differs from Welch's (half): give it explicitly
+    _, t, _ = signal.spectrogram(x, FS, nperseg=nperseg,
+                                 noverlap=nperseg // 2 if noverlap is None else noverlap)
+    assert est.n_averages == t.size

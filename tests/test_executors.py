@@ -91,6 +91,7 @@ def test_setup_without_recipe_cannot_travel():
     assert s.get().scale == 5.0  # the receiver builds its own
 
 
+@pytest.mark.slow  # starts a Dask LocalCluster: ~15 s
 def test_dask_local_cluster_same_results():
     pytest.importorskip("distributed")
     items = [(i, i) for i in range(30)]

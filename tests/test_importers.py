@@ -273,3 +273,22 @@ def test_opensees_missing_group_names_case_and_key(tmp_path):
         assemble(load_case(path))
     assert e.value.file == path and e.value.key == "model.stiffness_groups.k_x"
     assert "columns" in str(e.value)
+
+
+def test_large_model_paths_of_the_numpy_frf_agree_with_the_dense_ones(monkeypatch):
+    """The per-frequency sparse solve and the Arnoldi modes used above LARGE_N DOFs give the
+    dense results (random non-proportionally damped system, threshold lowered)."""
+    import nlp.frf as frf
+    from conftest import random_system
+    rng = np.random.default_rng(7)
+    M, C, K = random_system(40, rng)
+    w = np.array([0.5, 2.0, 7.0])
+    H_dense = frf.frf_dynamic_stiffness(M, C, K, w, "force", 3, "accelerance")
+    f_dense, z_dense, _ = frf.modal_parameters(M, C, K)
+    monkeypatch.setattr(frf, "LARGE_N", 10)
+    monkeypatch.setattr(frf, "N_MODES_LARGE", 5)
+    np.testing.assert_allclose(frf.frf_dynamic_stiffness(M, C, K, w, "force", 3, "accelerance"),
+                               H_dense, rtol=1e-9)
+    f_s, z_s, _ = frf.modal_parameters(sp.csc_matrix(M), sp.csc_matrix(C), sp.csc_matrix(K))
+    np.testing.assert_allclose(f_s[:4], f_dense[:4], rtol=1e-8)
+    np.testing.assert_allclose(z_s[:4], z_dense[:4], rtol=1e-6)

@@ -5,6 +5,7 @@ averaged, and records with spikes and dropouts. Records come from scipy.signal.l
 package's simulator); the truth is the simulated model."""
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,14 +26,19 @@ FS = 200.0                          # Hz
 M_AMD = 20.0                        # kg: the reaction mass whose acceleration gives the force
 
 
-def _update(case_path, starts=4):
+def _update(case_path, starts=4, options=None):
     """Updated value and standard error of every mass and stiffness."""
     cfg = load_case(case_path, {"starts": starts, "workers": 1, "seed": 0, "solver": None})
+    if options:
+        cfg = replace(cfg, solver=replace(cfg.solver, options=options))
     case = assemble(cfg)
     problem = build_problem(case)
     res = summarize(case, problem, scatter_search(problem, SearchConfig(starts=starts)))
-    return case, {p["name"]: (p["updated"], p["standard_error"]) for p in res["parameters"]
-                  if p["group"] in ("mass", "stiffness")}
+    # a parameter on a bound has no standard error (flag at_bound); compare with the
+    # Gauss-Newton value it would have inside
+    return case, {p["name"]: (p["updated"], p["standard_error"] if p["standard_error"] is not None
+                              else p["standard_error_if_interior"])
+                  for p in res["parameters"] if p["group"] in ("mass", "stiffness")}
 
 
 def _agree(a, b, n_se=1.0):
@@ -45,8 +51,12 @@ def _agree(a, b, n_se=1.0):
 def test_magnitude_only_cristallo_updates_to_the_complex_model(tmp_path):
     """The dB export (no phase) of the Cristallo frame gives the complex case's model within
     its standard errors; FRAC and MAC are not computed from it (they need phase)."""
-    _, complex_ = _update(ROOT / "cases/cristallo_three_storey/case.yaml")
-    case, mag = _update(ROOT / "cases/cristallo_three_storey_magnitude/case.yaml")
+    # IPOPT creeps along a weakly determined damping direction on these real data and stops
+    # at max_iter: accept its acceptable level, and solve both from the same start (the
+    # nominal model) so both land in the same basin
+    opts = {"acceptable_tol": 0.1, "acceptable_iter": 3, "acceptable_obj_change_tol": 1e-6}
+    _, complex_ = _update(ROOT / "cases/cristallo_three_storey/case.yaml", 1, opts)
+    case, mag = _update(ROOT / "cases/cristallo_three_storey_magnitude/case.yaml", 1, opts)
     assert not case.has_phase and np.all(case.H.imag == 0)
     _agree(mag, complex_)
 

@@ -47,7 +47,8 @@ def test_diagnosis_report_rebuilds_with_findings_and_provenance(tmp_path):
 
 
 def test_importing_the_package_leaves_the_matplotlib_backend_alone():
-    code = ("import matplotlib; matplotlib.use('svg'); import nlp.workflow, nlp.diagnose, "
-            "nlp.plots, nlp.verify, nlp.report; print(matplotlib.get_backend())")
+    code = ("import matplotlib; matplotlib.use('svg'); import nlp.plots, "
+            "nlp.diagnose_plots, nlp.verify, nlp.freqsel, nlp.report; "
+            "print(matplotlib.get_backend())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "svg"

@@ -79,6 +79,15 @@ def band_map(f, r, mask, fitted=None, per_octave=3):
     return cells
 
 
+def _persists(r, i, size):
+    """True when the residual departs from its local median by size/2 or more, with one
+    sign, on at least two of the points i-1, i, i+1: a resonance spans more than one
+    bin (or shifts the level after it), a noise spike does not."""
+    lo, hi = max(i - 20, 0), min(i + 21, r.size)
+    dev = r[max(i - 1, 0):i + 2] - np.median(r[lo:hi])
+    return max(int(np.sum(dev >= size / 2)), int(np.sum(dev <= -size / 2))) >= 2
+
+
 def extra_modes(f, L_meas, L_model, sigma, mask):
     """Resonances in the measurement that the model does not have.
 
@@ -99,6 +108,7 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
         idx = np.nonzero(ok)[0]
         lm = L_meas[c, idx]
         sig = sigma[c, idx]
+        r = lm - L_model[c, idx]
         peaks, props = find_peaks(lm, prominence=MIN_EXCESS, wlen=41)
         peaks = peaks[props["prominences"] >= PEAK_Z * sig[peaks]]
         mpk, _ = find_peaks(L_model[c, idx], prominence=0.1)
@@ -108,7 +118,7 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
             if f_model.size and np.min(np.abs(f_model - fp)) <= NEAR_MODEL * fp:
                 continue
             excess = lm[p] - L_model[c, idx][p]
-            if excess > max(MIN_EXCESS, PEAK_Z * sig[p]):
+            if excess > max(MIN_EXCESS, PEAK_Z * sig[p]) and _persists(r, p, excess):
                 hits.append((fp, c, float(excess)))
         # a lightly damped mode can also show as a sharp step or dip (its peak falls between
         # two bins, or the mode's phase makes it cancel the rest of the response): a second
@@ -124,7 +134,8 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
                 continue
             if f_anti.size and np.min(np.abs(f_anti - fp)) <= NEAR_ANTI * fp:
                 continue
-            hits.append((fp, c, float(abs(d2[q]))))
+            if _persists(r, q + 1, abs(d2[q])):
+                hits.append((fp, c, float(abs(d2[q]))))
     hits.sort()
     modes = []
     for fp, c, ex in hits:

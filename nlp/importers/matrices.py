@@ -24,7 +24,9 @@ import numpy as np
 import scipy.io
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
+from ..checks import check_model_matrices
 from ..errors import InputError
 from ..model import StructuralModel
 from .dofs import dof_number
@@ -133,14 +135,29 @@ def _as_int(v):
 
 
 def check_mass(M, path, key):
-    """Raise InputError unless M is symmetric positive definite (a massless DOF is not)."""
-    Md = M.toarray() if sp.issparse(M) else np.asarray(M)
-    try:
-        sla.cholesky(0.5 * (Md + Md.T), lower=True)
-    except np.linalg.LinAlgError:
+    """Raise InputError unless M is symmetric positive definite (a massless DOF is not).
+
+    Sparse M: the pivots of an LDL^T-like factorisation with a symmetric ordering and no
+    pivoting count the negative and zero eigenvalues (Sylvester's law of inertia).
+    """
+    if sp.issparse(M):
+        Ms = sp.csc_matrix(0.5 * (M + M.T))
+        try:
+            lu = spla.splu(Ms, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+            ok = np.all(lu.U.diagonal() > 0) and np.all(lu.perm_r == lu.perm_c)
+        except RuntimeError:  # exactly singular
+            ok = False
+    else:
+        Md = np.asarray(M)
+        try:
+            sla.cholesky(0.5 * (Md + Md.T), lower=True)
+            ok = True
+        except np.linalg.LinAlgError:
+            ok = False
+    if not ok:
         raise InputError(path, key, "a symmetric positive definite mass matrix (give every DOF "
-                         "some mass, e.g. rotational inertia, or condense massless DOFs out)") \
-            from None
+                         "some mass, e.g. rotational inertia, or condense massless DOFs out)")
 
 
 def _symmetric(A, path, key):
@@ -217,9 +234,14 @@ def load_bundle(path):
     """Dense model from one NPZ/MAT holding M0, K0 (n, n), M_infl, K_infl (r, n, n)
     and optional alpha_names / beta_names."""
     try:
-        raw = dict(np.load(path)) if path.endswith(".npz") else scipy.io.loadmat(path)
-    except Exception as exc:  # unreadable file: a user mistake
-        raise InputError(path, "<file>", f"a readable .npz or .mat file ({exc})") from None
+        if path.endswith(".npz"):
+            with np.load(path, allow_pickle=False) as z:
+                raw = {k: z[k] for k in z.files}
+        else:
+            raw = scipy.io.loadmat(path)
+    except Exception as exc:  # unreadable, empty or truncated file: a user mistake
+        raise InputError(path, "<file>", "a readable .npz or .mat file",
+                         f"{type(exc).__name__}: {exc}") from None
     for key in ("M0", "K0", "M_infl", "K_infl"):
         if key not in raw:
             raise InputError(path, key, "an array named so (M0, K0: n x n; M_infl, K_infl: "
@@ -231,13 +253,18 @@ def load_bundle(path):
         if a.ndim != dims or a.shape[-2:] != (n, n) or not np.all(np.isfinite(a)):
             raise InputError(path, key, f"finite array of shape {'(r, ' if dims == 3 else '('}{n}, {n})",
                              f"shape {a.shape}")
-    if np.any(np.linalg.eigvalsh(M0) <= 0):
-        raise InputError(path, "M0", "a symmetric positive definite mass matrix")
+    check_model_matrices(path, M0, K0, Mi, Ki)
 
     def names(key, r, prefix):
         v = raw.get(key)
-        return tuple(str(x).strip() for x in np.ravel(v)) if v is not None else \
-            tuple(f"{prefix}{i + 1}" for i in range(r))
+        if v is None:
+            return tuple(f"{prefix}{i + 1}" for i in range(r))
+        out = tuple(str(x).strip() for x in np.ravel(v))
+        if len(out) != r:  # name the key at fault, not a later CasADi error
+            raise InputError(path, key, f"{r} names, one per matrix of "
+                             f"{'M_infl' if key == 'beta_names' else 'K_infl'}",
+                             f"{len(out)} names")
+        return out
 
     return StructuralModel(M0=M0, K0=K0, M_infl=tuple(Mi), K_infl=tuple(Ki),
                            beta_names=names("beta_names", len(Mi), "beta"),

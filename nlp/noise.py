@@ -1,0 +1,373 @@
+"""Noise of a measured FRF: the variance of ln|H| and of its phase, per channel and frequency.
+
+The residuals of the updating are ln|H_a| - ln|H_x| (and the phase, for the
+complex residual); dividing them by the standard deviation of the estimate
+makes the objective a chi-square. That standard deviation depends on how the
+FRF was obtained (the "route"), and it varies along frequency by two orders of
+magnitude (small at the peaks, large in low-response shoulders), so it is
+derived per point from the data themselves:
+
+``transient``  one segment of a record that starts and ends at rest (chirp,
+               impact): H = Y / X, with white-or-coloured noise of spectral
+               density S_nx on the input and S_ny on an output. To first order
+               (errors in variables),
+
+                   Var ln|H| = Var arg H = (S_ny / |Y|^2 + S_nx / |X|^2) / 2,
+
+               with |X|^2, |Y|^2 the record's periodograms (same window) and
+               the noise spectra measured in its rest portions (where the input
+               is quiet and the response has died out).
+``welch``      averaged spectra, H1 = S_xy / S_xx (paper Eqn 20):
+               Var ln|H1| = (1 - g^2) / (2 n g^2) (Bendat & Piersol), with g^2 the
+               ordinary coherence (it already holds the input noise) and n the
+               number of averages corrected for the overlap of the windows;
+               plus the square of the resolution bias at sharp peaks (the
+               window's kernel smooths the spectra: Re(m2 H''/(2H))).
+               With input noise H1 is biased low by ln(1 + S_nx/S_uu); when the
+               rest portions give S_nx, that bias is added to the variance.
+``frf_coherence``  an FRF file that carries its coherence (and the averages).
+``scatter``    an FRF file without coherence, or records without a rest
+               portion: the robust local scatter of second differences of
+               ln H along frequency (Re: magnitude, Im: phase), in a sliding
+               window, so the level still follows the frequency.
+
+For a complex-circular error the magnitude and phase variances are equal; the
+model returns both.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+from scipy import signal
+
+__all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
+           "var_ln_transient", "kernel_moment", "resolution_bias", "rest_mask",
+           "rest_noise_psd", "local_scatter", "VAR_LN_MAX"]
+
+# ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
+VAR_LN_MAX = math.pi ** 2 / 24
+_FLOOR = 1e-4      # sigma floor (numerical resolution of a stored FRF)
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Standard deviations of one FRF set, on its full frequency grid.
+
+    Attributes
+    ----------
+    sigma_ln : ndarray, shape (n_ch, n_f)
+        Standard deviation of ln|H| [-].
+    sigma_phase : ndarray, shape (n_ch, n_f)
+        Standard deviation of arg H [rad].
+    route : str
+        ``"transient"``, ``"welch"``, ``"frf_coherence"`` or ``"scatter"``.
+    n_averages : float
+        Effective number of independent averages (1 for one segment).
+    """
+
+    sigma_ln: np.ndarray
+    sigma_phase: np.ndarray
+    route: str
+    n_averages: float = 1.0
+
+
+# ---------------------------------------------------------------- averaging
+def welch_averages(n, nperseg, noverlap=None, window="hann"):
+    """Number of Welch segments and the effective number of independent averages.
+
+    Overlapping segments are correlated; for a stationary signal the variance
+    of the averaged spectrum is (1/n_d) [1 + 2 sum_j (1 - j/n_d) rho_j^2], with
+    rho_j = sum w_i w_(i+jS) / sum w_i^2 the overlap correlation of the window
+    at a shift of j steps S (Welch 1967).
+
+    Parameters
+    ----------
+    n : int
+        Record length [samples].
+    nperseg : int
+        Segment length [samples].
+    noverlap : int, optional
+        Overlap [samples]; default nperseg // 2 (scipy's).
+    window : str
+        scipy window name.
+
+    Returns
+    -------
+    n_d : int
+        Number of segments.
+    n_eff : float
+        Effective number of independent averages (<= n_d).
+    """
+    nperseg = int(min(nperseg, n))
+    noverlap = nperseg // 2 if noverlap is None else int(noverlap)
+    step = max(nperseg - noverlap, 1)
+    n_d = max((n - nperseg) // step + 1, 1)
+    w = signal.get_window(window, nperseg)
+    w2 = float(w @ w)
+    acc = 1.0
+    for j in range(1, n_d):
+        if j * step >= nperseg:
+            break
+        rho = float(w[j * step:] @ w[:nperseg - j * step]) / w2
+        acc += 2 * (1 - j / n_d) * rho ** 2
+    return n_d, n_d / acc
+
+
+def kernel_moment(window, nperseg):
+    """Second moment [bins^2] of the window's spectral (power) kernel.
+
+    By Parseval, m2 = L^2 sum (w_(i+1) - w_i)^2 / (4 pi^2 sum w_i^2); Hann: 1/3.
+    """
+    w = signal.get_window(window, int(nperseg))
+    dw = np.diff(np.concatenate([[0.0], w, [0.0]]))
+    return nperseg ** 2 * float(dw @ dw) / (4 * math.pi ** 2 * float(w @ w))
+
+
+def resolution_bias(H, m2):
+    """Bias of ln|H| of an averaged estimate from the finite resolution.
+
+    The averaged spectra are the true ones smoothed by the window's power
+    kernel: S_xy ~ H S_xx + (m2 / 2) (H S_xx)'' for a smooth input spectrum,
+    so ln|H1| is off by Re(m2 H'' / (2 H)) (derivatives per bin). H'' is taken
+    from the measured H by second differences (large only at sharp peaks).
+    """
+    H = np.atleast_2d(np.asarray(H, complex))
+    d2 = np.zeros_like(H)
+    d2[:, 1:-1] = H[:, 2:] - 2 * H[:, 1:-1] + H[:, :-2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.real(0.5 * m2 * d2 / H)
+    return np.nan_to_num(b, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def var_ln_welch(coherence, n_eff):
+    """Var ln|H1| = (1 - g^2) / (2 n g^2), capped at the pure-noise value."""
+    g2 = np.clip(np.asarray(coherence, float), 1e-12, 1.0)
+    return np.minimum((1 - g2) / (2 * n_eff * g2), VAR_LN_MAX)
+
+
+def var_ln_transient(p_xx, p_yy, s_nx, s_ny):
+    """Var ln|Y/X| for one segment (errors in variables), bias included.
+
+    First order: (S_ny/|HU|^2 + S_nx/|U|^2) / 2. Where the signal-to-noise
+    ratio is low, ln|.| of a noisy spectrum is biased: for complex-circular
+    noise of relative power s, E ln|1 + e| = E1(1/s) / 2 (E1 the exponential
+    integral), so ln|H| is biased by (E1(1/s_y) - E1(1/s_x)) / 2; both terms are
+    added in quadrature, so noise-dominated points do not pass as data.
+
+    Parameters
+    ----------
+    p_xx : ndarray, shape (n_f,)
+        Periodogram of the input record (density scaling, unit^2/Hz).
+    p_yy : ndarray, shape (n_ch, n_f)
+        Periodograms of the outputs, same window and scaling.
+    s_nx, s_ny : ndarray, shapes (n_f,) and (n_ch, n_f)
+        Noise spectral densities of input and outputs (same scaling).
+    """
+    from scipy.special import exp1
+
+    def rel(noise, total):  # noise power over signal power, signal = total - noise
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = noise / np.maximum(total - noise, 1e-3 * noise)
+        return np.clip(np.nan_to_num(r, nan=1e3, posinf=1e3), 0.0, 1e3)
+
+    s_y, s_x = rel(s_ny, p_yy), rel(s_nx, p_xx)[None, :]
+    with np.errstate(divide="ignore", over="ignore"):
+        b_y, b_x = (0.5 * exp1(1 / np.maximum(v, 1e-12)) for v in (s_y, s_x))
+    # in quadrature, not as the difference: where both records are noise they
+    # do not cancel, the point carries no information
+    return np.minimum(0.5 * (s_y + s_x), VAR_LN_MAX) + b_y ** 2 + b_x ** 2
+
+
+# --------------------------------------------------------------- rest portions
+def _block_rms(v, L):
+    nb = v.size // L
+    return np.sqrt(np.mean(v[:nb * L].reshape(nb, L) ** 2, axis=1))
+
+
+def rest_mask(x, y, fs, block_s=None, contrast=8.0, margin=1.5):
+    """Samples where the input and every output are at rest (noise only).
+
+    The record is cut into blocks; a block is at rest when the RMS of the input
+    and of each output is within ``margin`` of that record's quietest block.
+    The input decides whether the record has a rest portion at all: its median
+    block must be at least ``contrast`` times louder than the quietest one
+    (else the quietest block is signal, not noise, and None is returned).
+
+    Parameters
+    ----------
+    x : ndarray (N,), y : ndarray (n_ch, N)
+        Input and outputs (mean removed or not).
+    fs : float
+        Sampling frequency [Hz].
+
+    Returns
+    -------
+    ndarray of bool, shape (N,), or None
+    """
+    n = x.size
+    L = max(int(block_s * fs) if block_s else n // 100, 16)
+    if n < 8 * L:
+        return None
+    keep = None
+    for k, v in enumerate((x, *np.atleast_2d(y))):
+        rms = _block_rms(v - np.mean(v), L)
+        lo = rms.min()
+        if not lo > 0 or (k == 0 and np.median(rms) < contrast * lo):
+            return None
+        quiet = rms <= margin * lo
+        keep = quiet if keep is None else keep & quiet
+    if keep.sum() < 4:
+        return None
+    mask = np.zeros(n, bool)
+    mask[:keep.size * L] = np.repeat(keep, L)
+    return mask
+
+
+def _runs(mask):
+    """(start, stop) of the contiguous True runs of mask."""
+    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
+    """Noise spectral density (one-sided, unit^2/Hz) of records in their rest portions.
+
+    Welch averages over every contiguous rest run (each at least one segment)
+    with short segments, smoothed over 5 frequency bins, interpolated onto f:
+    an estimate of the noise level that scatters from one bin to the next would
+    inflate the chi-square (E[1/s^2] > 1/E[s]^2). v : (n_ch, N) records.
+
+    Returns
+    -------
+    ndarray, shape (n_ch, f.size), or None when the rest runs are too short.
+    """
+    v = np.atleast_2d(v)
+    runs = [(a, b) for a, b in _runs(mask)]
+    longest = max((b - a for a, b in runs), default=0)
+    nper = int(2 ** math.floor(math.log2(max(min(longest, max_nperseg), 1))))
+    if nper < 16:
+        return None
+    acc, count = 0.0, 0
+    for a, b in runs:
+        if b - a < nper:
+            continue
+        fw, p = signal.welch(v[:, a:b], fs=fs, nperseg=nper, axis=-1)
+        k = (b - a - nper) // (nper // 2) + 1
+        acc, count = acc + k * p, count + k
+    p = acc / count
+    kern = np.ones(5) / 5
+    p = np.array([np.convolve(np.pad(pc, 2, mode="edge"), kern, mode="valid") for pc in p])
+    return np.array([np.interp(f, fw, pc) for pc in p])
+
+
+# ------------------------------------------------------------- local scatter
+def local_scatter(f, H, half_width=25):
+    """Std of ln|H| and arg H from the robust scatter of second differences along frequency.
+
+    For independent errors of variance s^2 at each point, the second difference
+    has variance 6 s^2; the median absolute deviation in a sliding window of
+    2 half_width + 1 points (x 1.4826) is robust to the curvature of the
+    smooth FRF at its peaks.
+
+    Returns
+    -------
+    sigma_ln, sigma_phase : ndarrays, shape (n_ch, n_f)
+    """
+    H = np.atleast_2d(np.asarray(H, complex))
+    with np.errstate(divide="ignore"):
+        lnH = np.log(np.where(H == 0, 1e-300, H))
+    lnH = lnH.real + 1j * np.unwrap(lnH.imag, axis=1)
+    d2 = lnH[:, 2:] - 2 * lnH[:, 1:-1] + lnH[:, :-2]
+    out = []
+    for part in (d2.real, d2.imag):
+        s = np.empty((H.shape[0], H.shape[1]))
+        n2 = part.shape[1]
+        for k in range(H.shape[1]):
+            j = min(max(k - 1, 0), n2 - 1)
+            seg = part[:, max(j - half_width, 0):j + half_width + 1]
+            med = np.median(seg, axis=1, keepdims=True)
+            s[:, k] = 1.4826 * np.median(np.abs(seg - med), axis=1) / math.sqrt(6)
+        out.append(np.maximum(s, _FLOOR))
+    return out[0], out[1]
+
+
+# ------------------------------------------------------------------ routes
+def _from_records(case):
+    """Transient (one segment) or Welch route for a case made from time histories."""
+    d, rec = case.config.data, case.records
+    names = [c.name for c in case.channels]
+    x = rec.data["__input__"]
+    y = np.array([rec.data[nm] for nm in names])
+    n = rec.t.size
+    nperseg = n if d.nperseg == "all" else d.nperseg
+    if nperseg is None:
+        nperseg = int(2 ** np.floor(np.log2(max(n // 8, 1))))
+    noverlap = 0 if d.nperseg == "all" else int(d.overlap * nperseg)
+    # segments of one record, and the overlap correction of their count
+    n_d, n_eff = welch_averages(n, nperseg, noverlap, d.window)
+    n_total = int(getattr(case, "n_averages", None) or n_d)   # all records (the estimator's)
+    mask = rest_mask(x, y, rec.fs)
+    s_n = None if mask is None else rest_noise_psd(np.vstack([x, y]), rec.fs, mask, case.f)
+    if n_total == 1:
+        if s_n is None:
+            s, sp = local_scatter(case.f, case.H)
+            return NoiseModel(s, sp, "scatter", 1.0)
+        kw = dict(fs=rec.fs, window=d.window, nperseg=n, noverlap=0, detrend="constant")
+        _, p_xx = signal.welch(x, **kw)
+        _, p_yy = signal.welch(y, axis=-1, **kw)
+        var = var_ln_transient(p_xx, p_yy, s_n[0], s_n[1:])
+        s = np.maximum(np.sqrt(var), _FLOOR)
+        return NoiseModel(s, s.copy(), "transient", 1.0)
+    n_eff = n_total * n_eff / n_d
+    var = var_ln_welch(case.coherence, n_eff)
+    if d.nperseg != "all":
+        # the resolution bias at sharp peaks is an error of the estimate as well
+        # (a whole transient per segment has no leakage)
+        var = var + resolution_bias(case.H, kernel_moment(d.window, nperseg)) ** 2
+    if s_n is not None and d.estimator == "H1":
+        # H1 is biased low by ln(1 + S_nx / S_uu) (input noise); count it as error
+        kw = dict(fs=rec.fs, window=d.window, nperseg=nperseg, noverlap=noverlap)
+        f_w, s_xx = signal.welch(x, **kw)
+        s_xx = np.interp(case.f, f_w, s_xx)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.clip(s_n[0] / np.maximum(s_xx - s_n[0], 1e-300), 0, None)
+        var = np.minimum(var + np.log1p(ratio)[None, :] ** 2, VAR_LN_MAX)
+    s = np.maximum(np.sqrt(var), _FLOOR)
+    return NoiseModel(s, s.copy(), "welch", n_eff)
+
+
+def noise_model(case):
+    """The noise model of an assembled case (:func:`nlp.case.assemble`), by route.
+
+    Returns
+    -------
+    NoiseModel
+        On the case's full frequency grid ``case.f`` and channels.
+    """
+    if case.records is not None and "__input__" in case.records.data:
+        return _from_records(case)
+    if case.coherence is not None:
+        n_eff = float(getattr(case, "n_averages", None) or 1.0)   # as the file states
+        if n_eff > 1:
+            s = np.maximum(np.sqrt(var_ln_welch(case.coherence, n_eff)), _FLOOR)
+            return NoiseModel(s, s.copy(), "frf_coherence", n_eff)
+    s, sp = local_scatter(case.f, case.H)
+    return NoiseModel(s, sp, "scatter", 1.0)
+
+
+_LAST = [None, None]   # the last case and its model: diagnose asks several times per case
+
+
+def sigma_ln(case, idx, model=None):
+    """Standard deviation of ln|H| at points idx of every channel: (n_ch, len(idx)).
+
+    model : a NoiseModel already computed for the case (else it is computed).
+    """
+    if model is None and getattr(case, "noise", None) is not None:
+        model = case.noise
+    if model is None:
+        if _LAST[0] is not case:
+            _LAST[:] = [case, noise_model(case)]
+        model = _LAST[1]
+    return model.sigma_ln[:, np.asarray(idx, int)]

@@ -1,0 +1,76 @@
+"""Noise model per FRF route: null cases (physics inside the model class) fit to
+a reduced chi-square near 1 on every route.
+
+Records and FRFs are simulated here by scripts/noise_sim.py (scipy lsim of a
+3-storey frame at 10x the recorded rate, noise on the input and every output),
+independently of the package's FRF and time-stepping code; the package only
+estimates, weighs and fits.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import noise_sim as sf
+from nlp import noise
+from nlp.case import assemble
+from nlp.config import load_case
+
+
+@pytest.mark.parametrize("route", sf.ROUTES)
+def test_null_case_has_reduced_chi2_near_one(tmp_path, route):
+    """One null case per FRF route: one-segment chirp, Welch, FRF file without and
+    with coherence; the package's noise model makes the fit a chi-square."""
+    chi2, model, case = sf.reduced_chi2(sf.null_case(route, tmp_path, seed=1))
+    assert model.route == {"frf_scatter": "scatter"}.get(route, route)
+    assert 0.8 <= chi2 <= 1.3, chi2
+    inside = (case.f > 1) & (case.f < 9)
+    s = model.sigma_ln[:, inside]
+    if route == "transient":     # the scatter of ln|H| follows the response (peaks vs shoulders)
+        assert s.max() / s.min() > 10
+    if route == "welch":         # 4096-sample segments of 30000 samples, half overlap
+        assert 12 < model.n_averages < 14
+    if route == "frf_scatter":   # follows the 1 % -> 4 % ramp of the simulated noise
+        lo, hi = model.sigma_ln[:, case.f < 2].mean(), model.sigma_ln[:, case.f > 10].mean()
+        assert 2.0 < hi / lo < 5.0
+    if route == "frf_coherence":
+        assert model.n_averages == 30
+
+
+def test_transient_variance_matches_monte_carlo():
+    """Var ln|Y/X| of one noisy DFT bin against the errors-in-variables formula."""
+    rng = np.random.default_rng(4)
+    U, Hk = 2.0 + 1.0j, 0.5 - 0.3j
+    s_nx, s_ny = 0.04, 0.01                          # noise powers of the bins
+    n = 200000
+    nx = math.sqrt(s_nx / 2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    ny = math.sqrt(s_ny / 2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
+    est = np.log((Hk * U + ny) / (U + nx))
+    p_xx = np.array([abs(U) ** 2 + s_nx])
+    p_yy = np.array([[abs(Hk * U) ** 2 + s_ny]])
+    var = noise.var_ln_transient(p_xx, p_yy, np.array([s_nx]), np.array([[s_ny]]))[0, 0]
+    assert np.var(est.real) == pytest.approx(var, rel=0.05)
+    assert np.var(est.imag) == pytest.approx(var, rel=0.05)
+
+
+def test_welch_overlap_correction():
+    """Hann at 50 % overlap: rho_1 = 1/6, so n_eff = n_d / (1 + 2 (1 - 1/n_d) / 36)."""
+    n_d, n_eff = noise.welch_averages(1024 * 10, 1024, 512, "hann")
+    assert n_d == 19
+    assert n_eff == pytest.approx(19 / (1 + 2 * (1 - 1 / 19) / 36), rel=1e-3)
+    assert noise.welch_averages(4096, 1024, 0, "hann") == (4, 4.0)
+    assert noise.kernel_moment("hann", 4096) == pytest.approx(1 / 3, rel=1e-4)
+
+
+def test_chirp_noise_above_last_mode_is_not_a_mode(tmp_path):
+    """fmax at the top of the excitation band (20 Hz), last mode at 7.4 Hz: the
+    half-power selection keeps the three modes only."""
+    path = sf.null_case("transient", tmp_path, seed=6, frequencies={"fmax": 20.0})
+    case = assemble(load_case(path))
+    M, _, K = sf.frame()
+    modes = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real)) / (2 * np.pi)
+    f_sel = case.f[case.selected]
+    near = np.min(np.abs(f_sel[:, None] - modes[None, :]) / modes[None, :], axis=1)
+    assert near.max() < 0.1, f_sel[near >= 0.1]
+    assert all(np.any(np.abs(f_sel - fr) < 0.01 * fr) for fr in modes)
