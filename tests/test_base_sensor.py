@@ -22,10 +22,11 @@ K_ST = np.array([4000.0, 3200.0, 2600.0])
 C_ST = np.array([3.0, 2.0, 1.5])          # story dashpots [N s/m]
 
 
-def _case(tmp_path, f, H, floors, excitation=None, output="absolute_accelerance"):
+def _case(tmp_path, f, H, floors, excitation=None, output="absolute_accelerance",
+          backend="auto"):
     np.savez(tmp_path / "frf.npz", f=f, H=H)
     case = {"name": "base", "model": {"type": "shear_frame", "masses": M_FL.tolist(),
-                                      "stiffnesses": K_ST.tolist()},
+                                      "stiffnesses": K_ST.tolist(), "frf_backend": backend},
             "parameters": {"fixed": {"m1": float(M_FL[0])}},
             "damping": {"model": "general", "matrix": shear_K(C_ST).tolist()},
             "data": {"file": "frf.npz",
@@ -62,11 +63,12 @@ def _flexible_base_frf(f, m_b, k_b, c_b):
     return out
 
 
-def test_fixed_base_sensor_reads_the_input(tmp_path):
+@pytest.mark.parametrize("backend", ["dense", "sparse"])
+def test_fixed_base_sensor_reads_the_input(tmp_path, backend):
     f = np.linspace(0.5, 12.0, 300)
     H = np.ones((4, f.size), complex)           # placeholder data: only the model is checked
     H[:3] = 1.0 + 0.5j
-    case = assemble(load_case(_case(tmp_path, f, H, [1, 2, 3, 0])))
+    case = assemble(load_case(_case(tmp_path, f, H, [1, 2, 3, 0], backend=backend)))
     assert case.channels[3].dof == BASE_DOF
     M, K = np.diag(M_FL), shear_K(K_ST)
     Ha = channel_frfs(M, shear_K(C_ST), K, 2 * np.pi * f, case.channels)

@@ -60,8 +60,13 @@ def test_pick_starts_10000_starts_fast():
     Z = rng.random((100_000, 17))
     t0 = time.perf_counter()
     idx = pick_starts(Z, rng.random(100_000), 9_999, lo, hi, 0.1)
-    assert time.perf_counter() - t0 < 5.0
+    # the 5-s target is bench_search.py's (timing asserts fail on a loaded machine); the
+    # point-by-point rule took minutes here, so 30 s still catches a quadratic regression
+    assert time.perf_counter() - t0 < 30.0
     assert len(set(idx.tolist())) == 9_999
+    U = Z[idx]
+    from scipy.spatial import cKDTree
+    assert not cKDTree(U).query_pairs(0.1 - 1e-12)  # all picks mutually >= 0.1 apart
 
 
 @pytest.fixture(scope="module")
