@@ -655,8 +655,9 @@ def main():
     ap.add_argument("--base-channel", action="store_true",
                     help="list the table accelerometer (floor 0) in the shake-table case files "
                          "(the records always carry it)")
-    ap.add_argument("--prior", help="relative 1-sigma uncertainty of the design masses and "
-                    "stiffnesses, e.g. 0.1,0.3, written as parameters.prior")
+    ap.add_argument("--prior", default="0.1,0.3",
+                    help="relative 1-sigma uncertainty of the design masses and stiffnesses "
+                         "written as parameters.prior (default 0.1,0.3; 'none' leaves it out)")
     ap.add_argument("--check", action="store_true",
                     help="after writing, compare each linear case's FRF estimate with the exact FRF")
     ap.add_argument("--residual", default="log_magnitude",
@@ -669,7 +670,7 @@ def main():
         name = case_name(k, s)
         make_case(os.path.join(a.out, name), s, a.seed * 1000 + k,
                   base_channel=a.base_channel, residual=a.residual,
-                  prior=[float(x) for x in a.prior.split(",")] if a.prior else None)
+                  prior=None if a.prior == "none" else [float(x) for x in a.prior.split(",")])
         msg = check_case(os.path.join(a.out, name)) if a.check else ""
         print(f"wrote {a.out}/{name}{msg}", flush=True)
 
