@@ -10,7 +10,7 @@ import scipy.io
 from nlp.errors import InputError
 from nlp.readers import frf_unit_factor, read_frf, read_time_histories, unit_factor, write_uff58
 
-CRISTALLO = Path("/work/shared/data/cristallo_3storey/test_2.csv")
+CRISTALLO = Path(__file__).resolve().parent.parent / "cases" / "cristallo_three_storey" / "test_2.csv"
 FS = 256.0  # Hz; dt = 1/256 is exact in 6 significant digits (UFF abscissa format)
 
 
