@@ -220,10 +220,13 @@ def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, 
                         "time": rows[c.index].get("time"), "before": c.before, "after": c.after,
                         "relative_change": c.relative, "z": c.z} for c in found]
     failed = [r["record"] for r in rows if r["status"] != "ok"]
+    from .provenance import provenance
+
     summary = {"case": cfg.name, "case_file": cfg.path, "records": N,
                "records_requested": len(record_paths), "failed": failed,
                "interrupted": interrupted, "window": w, "threshold": threshold,
-               "seconds": time.perf_counter() - t0, "changes": changes}
+               "seconds": time.perf_counter() - t0, "changes": changes,
+               "provenance": provenance(cfg)}
     write_atomic(os.path.join(out, "history.csv"), _csv(rows, names, X, S))
     write_json(os.path.join(out, "changes.json"), summary)
     if N:

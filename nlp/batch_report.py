@@ -91,21 +91,35 @@ def write_batch_report(out, summary, rows, names, X, S):
     else:
         parts.append("<p>No parameter moved beyond its uncertainty.</p>")
     parts.append(f"<p>A change is a step between the medians of the {summary['window']} records "
-                 f"before and after a record larger than {summary['threshold']:g} times its "
-                 "standard error (record-to-record scatter, at least the estimates' standard "
-                 "error).</p>")
+                 f"before and after a record larger than {summary['threshold']:g} times the "
+                 "root-mean-square of that difference elsewhere in the same history (what "
+                 "temperature, drift and estimation noise make it wander by), and at least that "
+                 "many times what the estimates' standard errors alone allow.</p>")
     if summary["failed"]:
         parts.append(f"<p><b>Records without a result:</b> {esc(', '.join(summary['failed']))}</p>")
     if os.path.exists(os.path.join(out, "trend.png")):
         parts.append("<h2>History</h2><img src='trend.png' style='max-width:100%'>")
-    parts.append("<h2>Table</h2><table><tr><th>#</th><th>record</th><th>time</th><th>status</th>"
-                 + "".join(f"<th>{esc(nm)}</th>" for nm in names) + "</tr>")
+    units = {}
+    for r in rows:
+        for nm, p in r.get("parameters", {}).items():
+            units.setdefault(nm, p.get("unit") or "")
+    parts.append("<h2>Table</h2><p>Updated value &plusmn; standard error per record.</p><table>"
+                 "<tr><th>#</th><th>record</th><th>time</th><th>status</th>"
+                 + "".join(f"<th>{esc(nm)}" + (f" [{esc(units[nm])}]" if units.get(nm) not in
+                                                ("", "-") else "") + "</th>" for nm in names)
+                 + "</tr>")
     for i, r in enumerate(rows):
         cells = "".join("<td></td>" if np.isnan(X[i, j]) else
                         f"<td>{X[i, j]:.5g} &plusmn; {S[i, j]:.2g}</td>" for j in range(len(names)))
         parts.append(f"<tr><td>{i}</td><td>{esc(r['record'])}</td><td>{esc(r.get('time') or '')}"
                      f"</td><td>{esc(r['status'])}</td>{cells}</tr>")
-    parts.append("</table></body></html>")
+    parts.append("</table>")
+    p = summary.get("provenance")
+    if p:
+        parts.append(f"<p style='color:#555;font-size:12px'>frf-nlp {esc(str(p.get('version')))}"
+                     f", {esc(str(p.get('date_utc')))}, <code>{esc(str(p.get('command_line')))}"
+                     "</code></p>")
+    parts.append("</body></html>")
     path = os.path.join(out, "report.html")
     write_atomic(path, "\n".join(parts) + "\n")
     return path
