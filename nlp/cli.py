@@ -39,8 +39,9 @@ def _diagnose(args):
     from .config import load_case
 
     out = _out(args, "diagnosis")
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": None,
-                                "solver": None})
+    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
+                                "workers": args.workers, "solver": None,
+                                "executor": args.executor, "scheduler": args.scheduler})
     from .diagnose import diagnose
     from .report import write_report
 
@@ -81,6 +82,16 @@ _EPILOG = """exit status:
 Case-file reference: docs/case_reference.md. Python API: docs/api (see README)."""
 
 
+def _executor_arguments(p, what):
+    """--workers, --executor and --scheduler, the same for run, diagnose and batch."""
+    p.add_argument("--workers", type=int, help="worker processes (default: search.workers, "
+                   "else 1)")
+    p.add_argument("--executor", choices=EXECUTORS, help=f"where {what} run: local processes "
+                   "(default: search.executor, else local) or a Dask cluster")
+    p.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
+                   "--executor dask; without it a LocalCluster of --workers processes)")
+
+
 def _parser():
     from . import __version__
 
@@ -97,13 +108,8 @@ def _parser():
                      "the case's search.starts, else 20)")
     run.add_argument("--seed", type=int, help="seed of the trial points (default: search.seed, "
                      "else 0)")
-    run.add_argument("--workers", type=int, help="worker processes (default: search.workers, "
-                     "else 1)")
     run.add_argument("--solver", help="ipopt or sqpmethod (default: solver.name, else ipopt)")
-    run.add_argument("--executor", choices=EXECUTORS,
-                     help="where local solves run: local processes (default) or a Dask cluster")
-    run.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
-                     "--executor dask; without it a LocalCluster of --workers processes)")
+    _executor_arguments(run, "local solves")
     run.add_argument("--resume", action="store_true", help="continue an interrupted run into "
                      "the same --out from its checkpoint (DIR.partial/)")
     dg = sub.add_parser("diagnose", help="find what physics the model leaves out",
@@ -114,17 +120,14 @@ def _parser():
                     "search.starts, else 20)")
     dg.add_argument("--seed", type=int, help="seed of the start points (default: search.seed, "
                     "else 0)")
+    _executor_arguments(dg, "baseline starts and candidate refits")
     bt = sub.add_parser("batch", help="update the same model from every record (monitoring)")
     bt.add_argument("case", help="case YAML file (data.file is replaced by each record)")
     bt.add_argument("records", nargs="+", help="record files, folders or glob patterns")
     bt.add_argument("--out", help="output folder (default: batch/ beside the case file)")
     bt.add_argument("--starts", type=int, help="local solves per record")
     bt.add_argument("--seed", type=int, help="seed of the trial points")
-    bt.add_argument("--workers", type=int, help="records updated at once (worker processes)")
-    bt.add_argument("--executor", choices=EXECUTORS, help="where records run: local processes "
-                    "(default) or a Dask cluster")
-    bt.add_argument("--scheduler", help="Dask scheduler address tcp://host:port (with "
-                    "--executor dask; without it a LocalCluster of --workers processes)")
+    _executor_arguments(bt, "records (one task each)")
     bt.add_argument("--resume", action="store_true", help="keep the records an interrupted "
                     "batch finished and update only the rest")
     rep = sub.add_parser("report", help="rebuild report.html of a finished run or diagnosis "

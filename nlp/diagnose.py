@@ -112,7 +112,7 @@ class _Kept:
         pass
 
 
-def _search(problem, config):
+def _search(problem, config, setup=None):
     """Scatter search; (best result, converged). When no start converged (a solver that
     crawls along a weakly determined direction until its iteration limit), the lowest
     objective reached is used, as every f is a true evaluation at a feasible point, and
@@ -120,7 +120,8 @@ def _search(problem, config):
     from .errors import SearchFailed
     kept = _Kept()
     try:
-        return scatter_search(problem, config, progress=None, checkpoint=kept).best, True
+        return scatter_search(problem, config, progress=None, checkpoint=kept,
+                              setup=setup).best, True
     except SearchFailed:
         finite = [r for r in kept.results.values() if np.isfinite(r.f)]
         if not finite:
@@ -293,19 +294,25 @@ def _refit_one(jobs, i):
     return r
 
 
-def _refit_all(jobs, workers):
-    """Refit independent candidates on the executor interface (nlp/executors): forked
-    local workers when workers > 1, which inherit the jobs without pickling them.
+def _jobs(jobs):
+    return jobs
 
-    The results do not depend on the number of workers: each refit is
-    deterministic and they are returned in the order of the jobs.
+
+def _refit_all(jobs, search):
+    """Refit independent candidates on the case's executor (nlp/executors): forked
+    local workers, which inherit the jobs, or a Dask cluster, which receives them
+    pickled (cases and candidates pickle; each worker builds its NLPs).
+
+    The results do not depend on the executor or the number of workers: each
+    refit is deterministic and they are returned in the order of the jobs.
     """
     from .executors import Setup, make_executor
-    workers = max(1, min(int(workers or 1), len(jobs)))
-    if workers == 1:
+    workers = max(1, min(int(search.workers or 1), len(jobs)))
+    if workers == 1 and search.executor != "dask":
         return [_refit(*j) for j in jobs]
-    with make_executor("local", workers=workers) as ex:
-        out = dict(ex.map(Setup(value=jobs), _refit_one, [(i, i) for i in range(len(jobs))]))
+    with make_executor(search.executor, workers=workers, scheduler=search.scheduler) as ex:
+        out = dict(ex.map(Setup(_jobs, jobs, value=jobs), _refit_one,
+                          [(i, i) for i in range(len(jobs))]))
     return [out[i] for i in range(len(jobs))]
 
 
@@ -546,8 +553,12 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     base = _problem(case, target)
     check_start_residuals(case, base)
     # a poor baseline optimum would make any added parameter look useful
-    b_res, b_conv = _search(base, SearchConfig(starts=max(cfg.search.starts, 20),
-                                               seed=cfg.search.seed, workers=cfg.search.workers))
+    from .executors import Setup
+    scfg = cfg.search
+    b_res, b_conv = _search(base, SearchConfig(starts=max(scfg.starts, 20), seed=scfg.seed,
+                                               workers=scfg.workers, executor=scfg.executor,
+                                               scheduler=scfg.scheduler),
+                            setup=Setup(_problem, case, target, value=base))
     if not b_conv:
         log("baseline: no start met the solver's convergence test (iteration limit); the "
             "lowest objective reached is used")
@@ -573,7 +584,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
         jobs = _to_refit(scored, top)
         results = _refit_all([(case, target, state["current"], state["z"], e, sc, n_fit, held,
-                               sig_held) for sc, e in jobs], cfg.search.workers)
+                               sig_held) for sc, e in jobs], cfg.search)
         k_cur = state["problem"].params.n_z - base.params.n_z
         phis.append(_decide(results, state["chi"], state["held"], nu - k_cur, n_fit))
         for r in results:

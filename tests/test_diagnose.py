@@ -59,3 +59,31 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
     case_file = str(tmp_path / "case" / "case.yaml")
     assert prov["files"][case_file]["sha256"] == hashlib.sha256(
         open(case_file, "rb").read()).hexdigest()
+
+
+@pytest.mark.slow  # three diagnoses of one small case (~20-40 s each) and a Dask cluster
+def test_same_diagnosis_on_every_executor(tmp_path):
+    """1 worker, the local pool of 2 and a Dask LocalCluster of 2 give the same diagnosis."""
+    pytest.importorskip("distributed")
+    from dataclasses import replace
+
+    folder = str(tmp_path / "case")
+    make_case(folder, {"storeys": 3, "seconds": 600.0, "excitation": "ground",
+                       "family": "added_mass", "location": 2, "value": 1.5}, 11)
+    cfg = load_case(folder + "/case.yaml")
+    runs = {}
+    for tag, kind, workers in (("one", "local", 1), ("pool", "local", 2), ("dask", "dask", 2)):
+        c = replace(cfg, search=replace(cfg.search, executor=kind, workers=workers))
+        runs[tag] = diagnose(c, str(tmp_path / tag), log=lambda *_: None)
+    ref = runs["one"]
+    assert ref["verdict"] == "missing_physics"
+    for tag in ("pool", "dask"):
+        r = runs[tag]
+        assert r["verdict"] == ref["verdict"]
+        assert r["fit"]["before"]["objective"] == pytest.approx(ref["fit"]["before"]["objective"],
+                                                                rel=1e-9)
+        assert [(f["physics"], f["location"]) for f in r["findings"]] == \
+            [(f["physics"], f["location"]) for f in ref["findings"]]
+        for f, g in zip(r["findings"], ref["findings"]):
+            for k, v in g["parameters"].items():
+                assert f["parameters"][k] == pytest.approx(v, rel=1e-6, abs=1e-12)
