@@ -131,7 +131,11 @@ class DaskExecutor(Executor):
             self.workers = max(1, int(workers))
             # processes, one thread each: IPOPT/MUMPS is not thread-safe. The statistical
             # profiler samples every 10 ms and took ~20 % of a worker's time on 10-ms solves.
-            with dask.config.set({"distributed.worker.profile.enabled": False}):
+            # glibc's default trimming, not Dask's MALLOC_TRIM_THRESHOLD_=65536: IPOPT and
+            # CasADi allocate per iteration, and the forced trims cost 25-35 % CPU per solve
+            with dask.config.set({"distributed.worker.profile.enabled": False,
+                                  "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
+                                  None}):
                 self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
                                              processes=True, dashboard_address=":0",
                                              silence_logs=logging.ERROR)
