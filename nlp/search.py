@@ -167,9 +167,16 @@ def start_points(problem, config, executor=None, setup=None):
 _PARALLEL_SCORING = 20_000  # trial points; below this, shipping them costs more than it saves
 
 
+_SCORE_BLOCK = 128  # points per compiled call: larger blocks cost 2-3x the CPU (memory traffic)
+
+
 def _score_chunk(problem, Z):
+    # Each point's score is computed on its own, so the blocking does not change it;
+    # small blocks keep the map's work arrays in cache (blocks of 12,500 points spent
+    # half their time in the kernel, faulting in fresh memory).
     with np.errstate(all="ignore"):
-        return problem.objective_batch(Z.T)
+        return np.concatenate([problem.objective_batch(Z[k:k + _SCORE_BLOCK].T)
+                               for k in range(0, len(Z), _SCORE_BLOCK)] or [np.empty(0)])
 
 
 def converged(problem, res):
