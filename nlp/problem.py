@@ -44,6 +44,8 @@ __all__ = ["RESIDUALS", "SOLVERS", "Channel", "Target", "SolverConfig", "LocalRe
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
 
+SCREEN_TOL = 1e-6  # IPOPT tol of screening solves (the default tol is 1e-8)
+
 _DEFAULT_OPTIONS = {
     "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-8,
               "ipopt.acceptable_tol": 1e-6, "ipopt.mu_strategy": "adaptive",
@@ -321,6 +323,11 @@ class UpdatingProblem:
                 opts[key] = named[key]
         nlp = {"x": x, "p": p, "f": self.obj_fn(x, p), "g": g}
         self._solver = ca.nlpsol("updater", self.solver_config.name, nlp, opts)
+        self._screen_solver = None
+        user = {k if k.startswith("ipopt.") else "ipopt." + k for k in self.solver_config.options}
+        # a screening solver only when the tolerance is ours to choose
+        self._screen_def = (nlp, {**opts, "ipopt.tol": SCREEN_TOL}) \
+            if self.solver_config.name == "ipopt" and "ipopt.tol" not in user else None
         self.ng = g.shape[0]
         self._batch = {}
 
@@ -415,6 +422,7 @@ class UpdatingProblem:
         self.compiled = False
         self._solver = ca.nlpsol("updater", self.solver_config.name,
                                  {"x": x, "p": p, "f": self.obj_fn(x, p), "g": g}, opts)
+        self._screen_solver = self._screen_def = None  # already stops at 1e-5 (above)
         self.ng = ng
         self._batch = {}
         self.matrices_fn = None
@@ -490,16 +498,33 @@ class UpdatingProblem:
         Hr, Hi = self._batch[key](np.asarray(z, float), np.asarray(omega, float)[None, :])
         return np.asarray(Hr) + 1j * np.asarray(Hi)
 
-    def solve(self, z0=None):
-        """One local solve from z0 (default: the case's initial point)."""
+    @property
+    def can_screen(self):
+        """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
+        return getattr(self, "_screen_def", None) is not None
+
+    def solve(self, z0=None, screen=False):
+        """One local solve from z0 (default: the case's initial point).
+
+        screen : stop at IPOPT's scaled error ``SCREEN_TOL`` (1e-6) instead of the
+            case's tolerance (1e-8), when :attr:`can_screen`. The scatter search
+            screens its starts this way and polishes the best ones with the full
+            tolerance (:func:`nlp.search.scatter_search`).
+        """
         z0 = self.z0 if z0 is None else np.asarray(z0, float)
         lo, hi = self.bounds
         z0c = np.clip(z0, lo, hi)
         g0 = np.zeros(self.ng)
+        solver = self._solver
+        if screen and self.can_screen:
+            if self._screen_solver is None:  # built once per process, on first use
+                nlp, opts = self._screen_def
+                self._screen_solver = ca.nlpsol("screen", self.solver_config.name, nlp, opts)
+            solver = self._screen_solver
         t0 = time.perf_counter()
-        sol = self._solver(x0=z0c, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
+        sol = solver(x0=z0c, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
         seconds = time.perf_counter() - t0
-        st = self._solver.stats()
+        st = solver.stats()
         status = str(st.get("return_status", "unknown"))
         iters = int(st.get("iter_count", -1))
         return LocalResult(z=np.asarray(sol["x"]).ravel(), f=float(sol["f"]),

@@ -65,6 +65,7 @@ class SearchResult:
     indices: list = None
     resumed: int = 0
     agreed: tuple = ()
+    polished: tuple = ()  # starts re-solved at the full tolerance after screening
 
 
     def __post_init__(self):
@@ -188,8 +189,11 @@ def converged(problem, res):
     return bool(res.success)
 
 
-def solve_start(problem, z0):
+def solve_start(problem, z0, screen=False):
     """One local solve that never raises: a failure is a result with f = inf.
+
+    screen: use the problem's screening tolerance when it has one
+    (:meth:`nlp.problem.UpdatingProblem.solve`).
 
     ``success`` of the returned result means :func:`converged`. A solve that
     stopped without converging keeps the objective evaluated at the point it
@@ -199,7 +203,7 @@ def solve_start(problem, z0):
 
     t0 = time.perf_counter()
     try:
-        res = problem.solve(z0)
+        res = problem.solve(z0, screen=True) if screen else problem.solve(z0)
     except Exception as exc:  # a failed start must not end the search
         msg = " ".join(str(exc).split())[:200]
         return LocalResult(z=np.asarray(z0, float), f=np.inf, success=False,
@@ -216,7 +220,30 @@ def solve_start(problem, z0):
 
 
 def _solve_item(problem, item):
-    return solve_start(problem, item)
+    return solve_start(problem, item, screen=True)
+
+
+POLISH = 10  # screened starts re-solved at the full tolerance: the lowest converged ones
+
+
+def _polish(problem, results):
+    """Re-solve the POLISH lowest converged screened starts with the full tolerance,
+    from where screening stopped; returns their start indices.
+
+    Screening (IPOPT tol 1e-6 instead of 1e-8) saves a fifth of the iterations of
+    every start; only the candidates for the best need the last digits. A polish
+    that does not converge leaves the screened result (converged at 1e-6) in place.
+    """
+    if not getattr(problem, "can_screen", False):
+        return ()
+    top = sorted((r.f, i) for i, r in results.items() if r.success)[:POLISH]
+    for _, i in top:
+        r = results[i]
+        p = solve_start(problem, r.z)
+        if p.success:
+            results[i] = replace(p, z0=r.z0, iterations=r.iterations + p.iterations,
+                                 seconds=r.seconds + p.seconds)
+    return tuple(sorted(i for _, i in top))
 
 
 def _progress(done, total, best_f, stream):
@@ -302,6 +329,8 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
                     executor.close()
                 if checkpoint is not None:
                     checkpoint.close()
+        with guard.deferred(swallow=True):  # a few solves; a Ctrl-C now waits for them
+            polished = _polish(problem, results)
     indices = sorted(results)
     ordered = [results[i] for i in indices]
     good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
@@ -317,7 +346,8 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     best = results[min(good)[1]]  # lowest f; the lowest start index on ties
     return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
                         interrupted=interrupted, seconds=time.perf_counter() - t0,
-                        indices=indices, resumed=resumed, agreed=tuple(agreed))
+                        indices=indices, resumed=resumed, agreed=tuple(agreed),
+                        polished=polished)
 
 
 AGREE_CHI2 = 0.1  # objectives closer than this in chi-square are one minimum

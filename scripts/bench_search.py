@@ -8,8 +8,8 @@ Prints, on this machine:
    wall and CPU seconds of each run (all processes: this one, which hosts the
    scheduler, and the workers), the Dask/local ratios, and whether both found
    the same best. On a shared machine the CPU ratio is the steadier measure;
-2. 10,000 starts with the local pool: trial scoring + picking + local solves:
-   the wall time, the CPU seconds of all processes (divided by the cores: the
+2. 10,000 starts with the local pool: trial scoring + picking + local solves
+   (screened, the best polished: README "Scatter search"): the wall time, the CPU seconds of all processes (divided by the cores: the
    wall time the run needs on cores it does not share), converged starts and the
    best objective;
 3. pick_starts at 1,000, 3,000 and 10,000 starts (10 trial points per start, 17
@@ -80,6 +80,8 @@ def bench_big(problem, setup, workers, starts=10_000):
     conv = sum(r.success for r in res.results)
     print(f"   wall {dt:.1f} s for {len(res.results)} starts ({res.n_trial} trial points), "
           f"{conv} converged, best f {res.best.f:.10g} ({_load()})")
+    print(f"   screened at IPOPT tol 1e-6, {len(res.polished)} lowest polished at 1e-8; "
+          f"best: {res.best.status}, {res.best.iterations} iterations in all")
     print(f"   CPU {cpu:.1f} s in all processes ({1000 * cpu / len(res.results):.1f} ms per start): "
           f"{cpu / workers:.1f} s of wall time on {workers} cores that are not shared")
 

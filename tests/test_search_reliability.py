@@ -85,7 +85,7 @@ def test_failed_solves_never_win(problem, monkeypatch):
     real = UpdatingProblem.solve
     calls = {"n": 0}
 
-    def sabotaged(self, z0=None):
+    def sabotaged(self, z0=None, **kw):
         calls["n"] += 1
         k = calls["n"] % 3
         if k == 1:
@@ -94,7 +94,7 @@ def test_failed_solves_never_win(problem, monkeypatch):
             return LocalResult(z=np.asarray(z0, float), f=0.0, success=False,
                                status="Invalid_Number_Detected", iterations=0, seconds=0.0,
                                z0=np.asarray(z0, float))
-        res = real(self, z0)
+        res = real(self, z0, **kw)
         return res
 
     monkeypatch.setattr(UpdatingProblem, "solve", sabotaged)
@@ -113,7 +113,7 @@ def test_failed_solves_never_win(problem, monkeypatch):
 
 
 def test_no_converged_solve_exits_3_and_writes_nothing(case_path, tmp_path, monkeypatch, capsys):
-    def broken(self, z0=None):
+    def broken(self, z0=None, **kw):
         z = np.full(self.params.n_z, np.nan)
         return LocalResult(z=z, f=float("nan"), success=True, status="Solve_Succeeded",
                            iterations=3, seconds=0.0, z0=np.asarray(z0, float))
