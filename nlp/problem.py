@@ -44,7 +44,7 @@ __all__ = ["RESIDUALS", "SOLVERS", "Channel", "Target", "SolverConfig", "LocalRe
 RESIDUALS = ("log_magnitude", "magnitude", "complex")
 SOLVERS = ("ipopt", "sqpmethod")
 
-SCREEN_TOL = 1e-6  # IPOPT tol of screening solves (the default tol is 1e-8)
+SCREEN_TOL = 1e-5  # IPOPT tol of screening solves (the default tol is 1e-8)
 
 _DEFAULT_OPTIONS = {
     "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-8,
@@ -506,7 +506,7 @@ class UpdatingProblem:
     def solve(self, z0=None, screen=False):
         """One local solve from z0 (default: the case's initial point).
 
-        screen : stop at IPOPT's scaled error ``SCREEN_TOL`` (1e-6) instead of the
+        screen : stop at IPOPT's scaled error ``SCREEN_TOL`` (1e-5) instead of the
             case's tolerance (1e-8), when :attr:`can_screen`. The scatter search
             screens its starts this way and polishes the best ones with the full
             tolerance (:func:`nlp.search.scatter_search`).

@@ -230,9 +230,9 @@ def _polish(problem, results):
     """Re-solve the POLISH lowest converged screened starts with the full tolerance,
     from where screening stopped; returns their start indices.
 
-    Screening (IPOPT tol 1e-6 instead of 1e-8) saves a fifth of the iterations of
+    Screening (IPOPT tol 1e-5 instead of 1e-8) saves a fifth of the iterations of
     every start; only the candidates for the best need the last digits. A polish
-    that does not converge leaves the screened result (converged at 1e-6) in place.
+    that does not converge leaves the screened result (converged at 1e-5) in place.
     """
     if not getattr(problem, "can_screen", False):
         return ()

@@ -1,4 +1,4 @@
-"""Screening solves (IPOPT tol 1e-6) with the best starts polished at the full tolerance:
+"""Screening solves (IPOPT tol 1e-5) with the best starts polished at the full tolerance:
 the search's best is a full-tolerance minimum, checked by its first-order conditions
 and against a full-tolerance solve from the same start."""
 
