@@ -14,6 +14,10 @@ comes back as soon as it finishes and is appended to the checkpoint
 a finite objective and point); the lowest objective wins, ties go to the
 lowest start index, so the answer depends only on the seed, not on the
 executor, the number of workers or the order in which starts finish.
+
+Starts are screened at a looser IPOPT tolerance when the case leaves it to us
+(:data:`nlp.problem.SCREEN_TOL`); the ``POLISH`` lowest converged starts are then
+re-solved at the full tolerance before the best is chosen.
 """
 
 from collections import Counter
