@@ -121,7 +121,7 @@ class DataConfig:
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
     overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all; FRF files: the analyzer's window (its resolution bias at peaks counts as noise), none if not windowed
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -556,6 +556,22 @@ def _location(rd, d, path, base=False):
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 
 
+def _check_window(rd, d, records):
+    """data.window: a scipy.signal window name; for FRF files also 'none' (not averaged)."""
+    if "window" not in d:
+        return
+    w = d["window"]
+    if not records and w == "none":
+        return
+    try:
+        from scipy.signal import get_window
+        get_window(w, 16)
+    except (ValueError, TypeError):
+        raise rd.err("data.window", "a scipy.signal window name such as hann or boxcar"
+                     + ("" if records else ", or none for an FRF not estimated by windowed "
+                        "averaging"), w) from None
+
+
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
@@ -658,6 +674,7 @@ def _data(rd, d, base):
     if "db_reference" in d and fmt not in ("db", "db_magnitude"):
         raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
     layout = _text_layout(rd, d, records)
+    _check_window(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),

@@ -114,7 +114,8 @@ def summarize(case, problem, search):
     theta0 = np.array([p.initial for p in params.params])
     theta = problem.theta(z_best)
     r, J = problem.residuals(z_best)
-    cov_z, s2, dof = standard_errors(J, r, problem.n_used)
+    G = problem.constraint_jacobian()
+    cov_z, s2, dof = standard_errors(J, r, problem.n_used, G)
     cov_theta = params.T @ cov_z @ params.T.T
     se_theta = np.sqrt(np.clip(np.diag(cov_theta), 0, None))
     near = search.near_best
@@ -173,7 +174,7 @@ def summarize(case, problem, search):
             "scale": ("anchored by total mass" if cfg.parameters.total_mass is not None
                       else "fixed by force input" if tg.excitation == "force"
                       else "anchored by fixed mass parameter(s)"),
-            **jacobian_report(J, params.z_names)},
+            **jacobian_report(J, params.z_names, G=G)},
         "solver": {"name": cfg.solver.name, "options": cfg.solver.options,
                    "compiled": problem.compiled, "status": search.best.status,
                    "iterations": search.best.iterations, "seconds": search.best.seconds},
