@@ -59,7 +59,7 @@ def recentre(case, problem, best, log=print, passes=4, tol=0.1):
         new = build_problem(case, centre=z)
         res = new.solve(z)
         r, J = new.residuals(res.z)
-        cov, _, _ = standard_errors(J, r, new.n_used)
+        cov, _, _ = standard_errors(J, r, new.n_used, new.constraint_jacobian())
         se = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
         move = float(np.max(np.abs(res.z - z) / se))
         rows.append({"pass": k + 1, "seconds": res.seconds, "iterations": res.iterations,
