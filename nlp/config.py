@@ -172,6 +172,7 @@ class SearchSection:
     workers: int = 1                       # worker processes
     executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
     scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
+    band_continuation: tuple = ()  # upper frequencies [Hz] of sub-bands fitted in turn from the initial model; the result competes with the starts (nlp.continuation)
 
 
 @dataclass(frozen=True)
@@ -839,8 +840,15 @@ def _solver(rd, d):
 
 def _search(rd, d):
     rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers", "executor",
-                                "scheduler"})
+                                "scheduler", "band_continuation"})
+    bands = d.get("band_continuation") or ()
+    if not isinstance(bands, (list, tuple)):
+        raise rd.err("search.band_continuation", "a list of increasing frequencies in Hz", bands)
+    bands = tuple(rd.numbers(bands, "search.band_continuation", positive=True)) if bands else ()
+    if any(b >= a for a, b in zip(bands[1:], bands[:-1])):
+        raise rd.err("search.band_continuation", "a list of increasing frequencies in Hz", list(bands))
     return SearchSection(
+        band_continuation=bands,
         starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
         trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
                                integer=True),

@@ -25,6 +25,7 @@ from .peakpick import compare_modes
 from .plots import frf_quantity, plot_frf_overlays
 from .provenance import provenance
 from .recentre import recentre
+from .continuation import band_continuation
 from .report import write_report
 from .results import parameters_table, summarize, with_matrix_file, write_atomic, write_json
 from .executors import Setup
@@ -51,13 +52,21 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
                             setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
     if search.resumed:
         log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
+    if cfg.search.band_continuation and not search.interrupted:
+        # one more start: fit the low band first, then widen it (nlp.continuation)
+        c_problem, c_res = band_continuation(case, cfg.search.band_continuation,
+                                             log=lambda m: log(tag + m))
+        search = _with_start(search, c_res)
+        if c_res.success and c_res.f < search.best.f:
+            log(f"{tag}band continuation beats the search's best start (f {c_res.f:.6g} < "
+                f"{search.best.f:.6g})")
+            problem, search = c_problem, replace(search, best=c_res)
     recentred = None
     if problem.backend == "reduced" and not search.interrupted:
         # the search ran on the nominal basis: move the basis to the fit and refit (nlp.recentre)
         problem, best, recentred = recentre(case, problem, search.best,
                                             log=lambda m: log(tag + m))
-        search = replace(search, best=best, results=search.results + [best],
-                         indices=list(search.indices) + [max(search.indices, default=-1) + 1])
+        search = replace(_with_start(search, best), best=best)
     result = summarize(case, problem, search)
     if recentred is not None:
         result["reduced_basis"] = recentred
@@ -74,6 +83,12 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
                    os.path.join(out, "selection.png"), channel_names=[c.name for c in case.channels])
     _log_result(result, table, log, tag)
     return case, result, search.interrupted
+
+
+def _with_start(search, res):
+    """The search with one more finished local solve (listed after its starts)."""
+    return replace(search, results=search.results + [res],
+                   indices=list(search.indices) + [max(search.indices, default=-1) + 1])
 
 
 def _log_result(result, table, log, tag):
