@@ -21,7 +21,8 @@ Run:  python scripts/bench_scale.py [--sizes 4 8 16 ...] [--starts 3] [--seed 0]
       [--backend auto|dense|sparse|reduced] [--case CASE.yaml ...]
 --case adds imported-model cases (one `assemble` + local solves from z0; parameter
 error against the case folder's truth.json: {"alpha": {name: relative change}} or
-{name: physical value}). A reduced-backend case is then re-centred as `frf-nlp run`
+{name: physical value}). With search.band_continuation its continuation start
+competes (not counted in the median solve). A reduced-backend case is then re-centred as `frf-nlp run`
 does (nlp.recentre): its passes' local-solve times and the final reduced-vs-exact
 FRF error are printed under its row, and its parameter error is the re-centred one.
 """
@@ -159,6 +160,12 @@ def run_case(path, args):
     problem, build = cold_build(lambda: build_problem(case))
     results = [problem.solve(z) for z in starts(problem, args.starts, args.seed)]
     best = min(results, key=lambda r: r.f)
+    if case.config.search.band_continuation:  # as frf-nlp run does: one more start
+        from nlp.continuation import band_continuation
+        c_problem, c_res = band_continuation(case, case.config.search.band_continuation,
+                                             log=lambda m: None)
+        if c_res.success and c_res.f < best.f:
+            problem, best = c_problem, c_res
     recentred = None
     if problem.backend == "reduced":  # as frf-nlp run does: re-centre the basis on the fit
         from nlp.recentre import recentre
