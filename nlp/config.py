@@ -42,6 +42,7 @@ class ModelConfig:
     mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
     frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
+    reduced_cutoff: float = 2.0    # reduced backend: basis modes up to this multiple of the band's top frequency (> 1)
 
 
 @dataclass(frozen=True)
@@ -329,13 +330,17 @@ def load_case(path, overrides=None):
 def _model(rd, d, base):
     """The model section; ``frf_backend`` applies to every model type."""
     backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
-    return replace(_model_kind(rd, d, base), frf_backend=backend)
+    cutoff = rd.number(d, "reduced_cutoff", "model.reduced_cutoff", 2.0, positive=True)
+    if cutoff <= 1.0:
+        raise rd.err("model.reduced_cutoff", "a number > 1 (multiple of the band's top frequency)",
+                     cutoff)
+    return replace(_model_kind(rd, d, base), frf_backend=backend, reduced_cutoff=float(cutoff))
 
 
 def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
                                "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
-                               "frf_backend"})
+                               "frf_backend", "reduced_cutoff"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
