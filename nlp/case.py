@@ -532,13 +532,17 @@ def assemble(cfg, channels=None, data_file=None):
                 noise=noise)
 
 
-def build_problem(case):
-    """The compiled NLP for a case (built once; reuse it for every start)."""
+def build_problem(case, centre=None):
+    """The compiled NLP for a case (built once; reuse it for every start).
+
+    ``centre``: decision vector z at which the reduced backend computes its basis
+    (default: the initial model; :mod:`nlp.recentre` moves it to the fit).
+    """
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
         backend = choose_backend(cfg.model.frf_backend, case.model.n)
-        basis, info = _reduced_basis(case) if backend == "reduced" else (None, None)
+        basis, info = _reduced_basis(case, centre) if backend == "reduced" else (None, None)
         problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
                                   residual=cfg.objective.residual, solver=solver,
                                   total_mass=cfg.parameters.total_mass, frf_backend=backend,
@@ -553,35 +557,50 @@ def build_problem(case):
     return problem
 
 
-def _reduced_basis(case):
-    """The reduced basis, after checking its FRF against the exact one at the initial model.
+def _reduced_basis(case, centre=None):
+    """The reduced basis at z = ``centre`` (default z0), after checking its FRF against the exact one there.
 
-    Refuses (InputError on ``model.frf_backend``) when the RMS error of ln|H|
-    over the case's frequencies (every k-th, at most 40) exceeds the data noise (median over channels
-    of the noise of ln|H|, :func:`nlp.diagnose.noise_sigma`).
+    Refuses (InputError on ``model.frf_backend``) when the error exceeds the
+    data noise (:func:`reduced_error`).
+    """
+    tg = case.target
+    full = LinearSystem.from_model(case.model, case.damping, tg)
+    z = case.params.z0 if centre is None else np.asarray(centre, float)
+    sa, sb, _ = case.params.slices()
+    theta = case.params.theta(z)
+    psi = reduced.basis(full.shifted(theta[sa], theta[sb]), float(tg.omega.max()),
+                        cutoff=case.config.model.reduced_cutoff)
+    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
+    return psi, reduced_error(case, small, z, full)
+
+
+def reduced_error(case, small, z, full=None):
+    """The reduced FRF against the exact sparse FRF at z; refuses when it exceeds the noise.
+
+    Error: RMS and maximum of |ln|H_red| - ln|H_exact|| over every k-th of the case's
+    frequencies (at most 40: each exact point is a full factorisation, 0.1-0.3 s at
+    2,100 DOFs), against the data noise (median over channels of the noise of ln|H|,
+    :func:`nlp.diagnose.noise_sigma`). ``small``: the reduced SparseFRF.
+    Raises InputError on ``model.frf_backend`` when the RMS error exceeds the noise.
     """
     from .diagnose import noise_sigma  # diagnose builds on this module
 
     tg = case.target
-    full = LinearSystem.from_model(case.model, case.damping, tg)
-    psi = reduced.basis(full, float(tg.omega.max()))
-    z0 = case.params.z0
-    # every k-th of the case's frequencies (at most 40): each exact point costs a full
-    # factorisation (0.3 s at 2,100 DOFs of a 3-D frame)
+    full = LinearSystem.from_model(case.model, case.damping, tg) if full is None else full
     k = -(-tg.omega.size // 40)
     w, weight = tg.omega[::k], tg.weight[:, ::k]
-    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z0, w)
-    small = SparseFRF(full.project(psi), case.damping, case.params, tg, "log_magnitude")
-    rms, worst = reduced.log_error(exact, small.frf(z0, w), weight)
+    exact = SparseFRF(full, case.damping, case.params, tg, "log_magnitude").frf(z, w)
+    rms, worst = reduced.log_error(exact, small.frf(z, w), weight)
     noise = float(np.median(noise_sigma(case, case.selected)))
-    info = {"vectors": psi.shape[1], "rms_log_error": rms, "max_log_error": worst, "noise": noise,
+    m = small.n
+    info = {"vectors": m, "rms_log_error": rms, "max_log_error": worst, "noise": noise,
             "points_checked": int(w.size)}
     if rms > noise:
         raise InputError(case.config.path, "model.frf_backend",
-                         f"sparse (or dense): the reduced basis ({psi.shape[1]} vectors) misses the "
+                         f"sparse (or dense): the reduced basis ({m} vectors) misses the "
                          f"exact FRF by {rms:.3g} (RMS of ln|H| on the case's frequencies), more "
                          f"than the data noise {noise:.3g}", "reduced")
-    return psi, info
+    return info
 
 
 def _casadi_reason(text):

@@ -42,6 +42,7 @@ class ModelConfig:
     mass_groups: dict = field(default_factory=dict)        # name -> group / matrix spec (masses)
     ndm: int = None                # spatial dimension, for DOF names of a 3-D truss
     frf_backend: str = "auto"      # auto | dense | sparse | reduced (nlp.frf_backends)
+    reduced_cutoff: float = 2.0    # reduced backend: basis modes up to this multiple of the band's top frequency (> 1)
 
 
 @dataclass(frozen=True)
@@ -120,7 +121,7 @@ class DataConfig:
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
     overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all; FRF files: the analyzer's window (its resolution bias at peaks counts as noise), none if not windowed
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
@@ -171,6 +172,7 @@ class SearchSection:
     workers: int = 1                       # worker processes
     executor: str = "local"      # where local solves run (nlp.executors): local | dask | serial
     scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
+    band_continuation: tuple = ()  # upper frequencies [Hz] of sub-bands fitted in turn from the initial model; the result competes with the starts (nlp.continuation)
 
 
 @dataclass(frozen=True)
@@ -329,13 +331,17 @@ def load_case(path, overrides=None):
 def _model(rd, d, base):
     """The model section; ``frf_backend`` applies to every model type."""
     backend = rd.choice(d, "frf_backend", "model.frf_backend", FRF_BACKENDS, "auto")
-    return replace(_model_kind(rd, d, base), frf_backend=backend)
+    cutoff = rd.number(d, "reduced_cutoff", "model.reduced_cutoff", 2.0, positive=True)
+    if cutoff <= 1.0:
+        raise rd.err("model.reduced_cutoff", "a number > 1 (multiple of the band's top frequency)",
+                     cutoff)
+    return replace(_model_kind(rd, d, base), frf_backend=backend, reduced_cutoff=float(cutoff))
 
 
 def _model_kind(rd, d, base):
     rd.check_keys(d, "model", {"type", "masses", "stiffnesses", "file", "script", "M", "K",
                                "dof_map", "constrained", "stiffness_groups", "mass_groups", "ndm",
-                               "frf_backend"})
+                               "frf_backend", "reduced_cutoff"})
     kind = rd.choice(d, "type", "model.type", MODEL_TYPES, "shear_frame")
     if kind == "shear_frame":
         if "masses" not in d:
@@ -551,6 +557,22 @@ def _location(rd, d, path, base=False):
 _QUANTITY_OUTPUT = {"displacement": "receptance", "velocity": "mobility"}
 
 
+def _check_window(rd, d, records):
+    """data.window: a scipy.signal window name; for FRF files also 'none' (not averaged)."""
+    if "window" not in d:
+        return
+    w = d["window"]
+    if not records and w == "none":
+        return
+    try:
+        from scipy.signal import get_window
+        get_window(w, 16)
+    except (ValueError, TypeError):
+        raise rd.err("data.window", "a scipy.signal window name such as hann or boxcar"
+                     + ("" if records else ", or none for an FRF not estimated by windowed "
+                        "averaging"), w) from None
+
+
 def _data(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
@@ -653,6 +675,7 @@ def _data(rd, d, base):
     if "db_reference" in d and fmt not in ("db", "db_magnitude"):
         raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
     layout = _text_layout(rd, d, records)
+    _check_window(rd, d, records)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=tuple(out), type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "boxcar" if nperseg == "all" else "hann")),
@@ -817,8 +840,15 @@ def _solver(rd, d):
 
 def _search(rd, d):
     rd.check_keys(d, "search", {"starts", "trial_factor", "seed", "workers", "executor",
-                                "scheduler"})
+                                "scheduler", "band_continuation"})
+    bands = d.get("band_continuation") or ()
+    if not isinstance(bands, (list, tuple)):
+        raise rd.err("search.band_continuation", "a list of increasing frequencies in Hz", bands)
+    bands = tuple(rd.numbers(bands, "search.band_continuation", positive=True)) if bands else ()
+    if any(b >= a for a, b in zip(bands[1:], bands[:-1])):
+        raise rd.err("search.band_continuation", "a list of increasing frequencies in Hz", list(bands))
     return SearchSection(
+        band_continuation=bands,
         starts=rd.number(d, "starts", "search.starts", 20, positive=True, integer=True),
         trial_factor=rd.number(d, "trial_factor", "search.trial_factor", 10, positive=True,
                                integer=True),

@@ -30,6 +30,7 @@ import os
 import numpy as np
 
 from .case import _half_power, assemble
+from .identify import tangent_basis
 from .noise import sigma_ln
 from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
@@ -189,6 +190,14 @@ def _score_at(pr, z, k):
     their effect left after projecting out the baseline Jacobian."""
     r, J = pr.residuals(z)
     Jb, Je = J[:, :-k], J[:, -k:]
+    G = pr.constraint_jacobian()
+    if G.size:
+        # only steps that keep the total-mass anchor: the baseline moves on its constraint
+        # surface, and a candidate that adds mass is paired with the least compensating step
+        Jb = Jb @ tangent_basis(G[:, :-k], Jb.shape[1])
+        E = np.zeros((J.shape[1], k))
+        E[-k:] = np.eye(k)
+        Je = J @ (E - np.linalg.pinv(G) @ (G @ E))
     Q, _ = np.linalg.qr(Jb)
     Jp = Je - Q @ (Q.T @ Je)
     rp = r - Q @ (Q.T @ r)
@@ -253,7 +262,8 @@ def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
 def _quasi_se(pr, z):
     """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood)."""
     r, J = pr.residuals(z)
-    cov, _ = quasi_covariance(J, r, max(pr.n_used - pr.params.n_z, 1))
+    G = pr.constraint_jacobian()
+    cov, _ = quasi_covariance(J, r, max(pr.n_used - pr.params.n_z + G.shape[0], 1), G)
     T = pr.params.T
     return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
 
@@ -683,11 +693,13 @@ def _inside_model_class(cfg, case, state, absorbed, log):
         findings.append({
             "physics": "local_damper", "location": {"between": [s - 1, s]},
             "parameters": {name: d["excess"]}, "uncertainty": {name: d["standard_error"]},
-            "evidence": {"source": "damping_decomposition", "ratio_to_other_stories": d["ratio"]},
+            "evidence": {"source": "damping_decomposition", "ratio_to_other_stories": d["ratio"],
+                         "modal_share": d["modal_share"]},
             "statement": (f"The fitted damping is concentrated in story {s}: a dashpot of "
                           f"{d['excess']:.3g} +- {d['standard_error']:.2g} N s/m between {where} "
                           f"and floor {s} beyond the share of the other stories "
-                          f"({d['ratio']:.1f}x their damping per unit stiffness).")})
+                          f"({d['ratio']:.1f}x their damping per unit stiffness; it supplies "
+                          f"{100 * d['modal_share']:.0f} % of one mode's damping).")})
     # absorbed candidates, kept only where the fitted parameters point at them
     names = pr.params.names
     fixed = {p.name for p in pr.params.params if p.fixed}

@@ -129,7 +129,10 @@ def frf_dynamic_stiffness(M, C, K, omega, excitation="ground", force_dof=None,
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     b = load_vector(M, excitation, force_dof, r)
     if M.shape[0] > LARGE_N:
-        return _apply_output(_solve_sparse(M, C, K, omega, b), omega, output)
+        ab = _rayleigh_coefficients(M, C, K)
+        Hq = _solve_sparse(M, C, K, omega, b) if ab is None else \
+            _solve_proportional(M, K, ab, omega, b)
+        return _apply_output(Hq, omega, output)
     Z = K[None] - omega[:, None, None] ** 2 * M[None] + 1j * omega[:, None, None] * C[None]
     Hq = np.linalg.solve(Z, np.broadcast_to(b, (omega.size, b.size))[..., None])[..., 0].T
     return _apply_output(Hq, omega, output)
@@ -155,6 +158,39 @@ def _solve_sparse(M, C, K, omega, b):
                        diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         Hq[p, k] = lu.solve(bp)
     return Hq
+
+
+def _rayleigh_coefficients(M, C, K, rtol=1e-12):
+    """(a0, a1) when C = a0 M + a1 K to round-off (least squares on the entries), else None."""
+    Ms, Cs, Ks = (sp.csr_matrix(A) for A in (M, C, K))
+    pat = (abs(Ms) + abs(Cs) + abs(Ks)).tocoo()
+    r, c = pat.row, pat.col
+    A = np.column_stack([np.asarray(Ms[r, c]).ravel(), np.asarray(Ks[r, c]).ravel()])
+    y = np.asarray(Cs[r, c]).ravel()
+    if not np.any(y):
+        return 0.0, 0.0
+    ab, *_ = np.linalg.lstsq(A, y, rcond=None)
+    return tuple(ab) if np.linalg.norm(A @ ab - y) <= rtol * np.linalg.norm(y) else None
+
+
+_MODES_CACHE = {}
+
+
+def _solve_proportional(M, K, ab, omega, b):
+    """q(w) for C = a0 M + a1 K by the sum over ALL undamped modes (exact for this damping):
+    q = Phi diag(1 / (lam_r - w^2 + jw (a0 + a1 lam_r))) Phi^T b. One dense eigh (divide and
+    conquer, 3 s at 2,100 DOFs) replaces a sparse LU per frequency (0.1 s each); cached per
+    (M, K), since the result files evaluate the same model on several grids."""
+    Md, Kd = (A.toarray() if sp.issparse(A) else np.asarray(A, float) for A in (M, K))
+    key = (hash(Md.tobytes()), hash(Kd.tobytes()))
+    if key not in _MODES_CACHE:
+        _MODES_CACHE.clear()  # one model at a time: n^2 floats each
+        _MODES_CACHE[key] = sla.eigh(Kd, Md, driver="gvd")
+    lam, Phi = _MODES_CACHE[key]
+    a0, a1 = ab
+    g = Phi.T @ np.asarray(b, float)
+    den = lam[:, None] - omega[None, :] ** 2 + 1j * omega[None, :] * (a0 + a1 * lam[:, None])
+    return Phi @ (g[:, None] / den)
 
 
 def _lowest_complex_modes(M, C, K, k):

@@ -26,6 +26,10 @@ derived per point from the data themselves:
                With input noise H1 is biased low by ln(1 + S_nx/S_uu); when the
                rest portions give S_nx, that bias is added to the variance.
 ``frf_coherence``  an FRF file that carries its coherence (and the averages).
+               For both FRF-file routes, the resolution bias of the analyzer's window
+               (``data.window``, default Hann; ``none`` for an FRF that was not
+               estimated by windowed averaging) at the file's own resolution is
+               added, as for Welch: the scatter and the coherence cannot show it.
 ``scatter``    an FRF file without coherence, or records without a rest
                portion: the robust local scatter of second differences of
                ln H along frequency (Re: magnitude, Im: phase), in a sliding
@@ -347,13 +351,31 @@ def noise_model(case):
     """
     if case.records is not None and "__input__" in case.records.data:
         return _from_records(case)
+    # a stored FRF is (almost always) an analyzer's average with a window (data.window,
+    # default Hann) at the file's own resolution: its peaks carry that window's resolution
+    # bias, which no scatter or coherence shows; counted as error on a uniform grid
+    bias2 = _file_resolution_bias2(case.f, case.H, case.config.data.window)
     if case.coherence is not None:
         n_eff = float(getattr(case, "n_averages", None) or 1.0)   # as the file states
         if n_eff > 1:
-            s = np.maximum(np.sqrt(var_ln_welch(case.coherence, n_eff)), _FLOOR)
+            var = np.minimum(var_ln_welch(case.coherence, n_eff) + bias2, VAR_LN_MAX)
+            s = np.maximum(np.sqrt(var), _FLOOR)
             return NoiseModel(s, s.copy(), "frf_coherence", n_eff)
     s, sp = local_scatter(case.f, case.H)
-    return NoiseModel(s, sp, "scatter", 1.0)
+    return NoiseModel(np.sqrt(s ** 2 + bias2), np.sqrt(sp ** 2 + bias2), "scatter", 1.0)
+
+
+def _file_resolution_bias2(f, H, window="hann"):
+    """Squared resolution bias of ln|H| of an FRF averaged with ``window`` on a uniform
+    grid; 0 for ``window: none`` (an FRF not estimated by windowed averaging, e.g.
+    stepped sine or a frequency-domain simulation) or a non-uniform grid."""
+    f = np.asarray(f, float)
+    if window == "none" or f.size < 5:
+        return 0.0
+    df = np.diff(f)
+    if np.max(np.abs(df - df.mean())) > 1e-6 * abs(df.mean()):
+        return 0.0
+    return resolution_bias(H, kernel_moment(window, 1024)) ** 2
 
 
 _LAST = [None, None]   # the last case and its model: diagnose asks several times per case

@@ -468,6 +468,18 @@ class UpdatingProblem:
             self._batch[n] = self.obj_fn.map(n, "serial")
         return np.asarray(self._batch[n](Z, self._p)).ravel()
 
+    def constraint_jacobian(self):
+        """dg/dz (n_g, n_z) of the equality constraints: the total-mass anchor
+        1^T M 1 = m_total, linear in beta (Eqn 24), or none (0, n_z)."""
+        T = self.params.T
+        if self.total_mass is None:
+            return np.zeros((0, T.shape[1]))
+        _, sb, _ = self.params.slices()
+        sr = np.array([float(A.sum()) for A in self.model.M_infl])
+        if sr.size == 0:
+            return np.zeros((0, T.shape[1]))
+        return (sr @ T[sb, :])[None, :]
+
     def residuals(self, z):
         """Residual vector r and Jacobian J = dr/dz at z."""
         r, J = self.resjac_fn(np.asarray(z, float), self._p)

@@ -119,6 +119,8 @@ def _imgs(out, d, pattern):
 
 
 def _matrix(title, A, unit):
+    if A is None:  # a large model: its matrices are in an NPZ file, not in the JSON
+        return ""
     n = len(A)
     scale = max((abs(v) for row in A for v in row), default=1.0)
     rows = [[f"row {i + 1}"] + [fmt_value(v, 6, scale) for v in A[i]] for i in range(n)]
@@ -157,8 +159,11 @@ def _update_section(out, d, label):
     parts.append("<h3>Damping</h3><p>The physical damping matrix C [N s/m] of the updated "
                  "model and the modal damping ratios of both models (complex eigenproblem, "
                  "Eqn 5).</p>")
-    parts.append(_matrix("C updated", mats["updated"]["C"], "N s/m"))
-    parts.append(_matrix("C initial", mats["initial"]["C"], "N s/m"))
+    if "file" in mats:
+        parts.append(f"<p class='note'>M, K, C ({mats['n']} DOFs) are in "
+                     f"{html.escape(mats['file'])} (sparse).</p>")
+    parts.append(_matrix("C updated", mats.get("updated", {}).get("C"), "N s/m"))
+    parts.append(_matrix("C initial", mats.get("initial", {}).get("C"), "N s/m"))
     parts.append(_modal_table(res["modal"]["initial"], res["modal"]["updated"]))
     damp = [p for p in res["parameters"] if p["group"] == "damping"]
     if damp:
@@ -229,7 +234,7 @@ def _run_report(out):
                         [[i + 1, f, fmt_percent(z, 3, False)] for i, (f, z) in enumerate(
                             zip(s["model"]["natural_frequencies_hz"],
                                 s["model"]["damping_ratios"]))]))
-    parts.append(_matrix("C of the final model", s["model"]["C"], "N s/m"))
+    parts.append(_matrix("C of the final model", s["model"].get("C"), "N s/m"))
     needs = s.get("needs_phase")
     parts.append(_table(["channel", "FDAC", "FRAC"],
                         [[k, v, "needs phase" if needs else s.get("frac", {}).get(k)]

@@ -7,15 +7,18 @@ import os
 import tempfile
 
 import numpy as np
+import scipy.sparse as sp
 
 from .flags import bound_flag, iteration_flag
 from .frf import channel_frfs, modal_parameters
 from .identify import jacobian_report, standard_errors
 from .metrics import fdac
 
-__all__ = ["summarize", "write_atomic", "write_json", "parameters_table", "UNITS"]
+__all__ = ["summarize", "write_atomic", "write_json", "parameters_table", "UNITS", "MATRIX_MAX",
+           "with_matrix_file", "load_matrices"]
 
 UNITS = {"stiffness": "N/m", "mass": "kg", "damping": "-"}
+MATRIX_MAX = 200  # DOFs: above, M, K, C go to an NPZ file in sparse (CSC) form, not into the JSON
 
 
 def write_atomic(path, data, mode="w"):
@@ -53,6 +56,48 @@ def _jsonable(x):
     raise TypeError(type(x).__name__)
 
 
+def with_matrix_file(doc, key, folder, name="matrices.npz"):
+    """``doc`` ready for JSON: large matrices under ``key`` moved to ``folder/name``.
+
+    ``doc[key]`` maps labels to {"M", "K", "C"} arrays (or is one such dict). Up to
+    MATRIX_MAX DOFs the doc is returned as it is; above, the matrices are written
+    sparse (CSC, :func:`load_matrices` reads them back) and ``doc[key]`` becomes
+    {"file": name, "storage": ..., "n": n}. ``doc`` itself is not changed.
+    """
+    mats = doc[key]
+    nested = "M" not in mats
+    groups = mats if nested else {"": mats}
+    n = np.shape(next(iter(groups.values()))["M"])[0]
+    if n <= MATRIX_MAX:
+        return doc
+    arrays = {}
+    for label, g in groups.items():
+        for k, A in g.items():
+            A = sp.csc_matrix(np.asarray(A) if not sp.issparse(A) else A)
+            A.eliminate_zeros()
+            pre = f"{label}_{k}" if label else k
+            arrays.update({pre + "_data": A.data, pre + "_indices": A.indices,
+                           pre + "_indptr": A.indptr, pre + "_shape": np.array(A.shape)})
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    write_atomic(os.path.join(folder, name), buf.getvalue(), mode="wb")
+    return {**doc, key: {"file": name, "n": int(n),
+                         "storage": f"scipy.sparse CSC: <label>_<M|K|C>_data/indices/indptr/shape "
+                                    f"(n > {MATRIX_MAX} DOFs; nlp.results.load_matrices)"}}
+
+
+def load_matrices(path):
+    """{label: {"M", "K", "C"}} (or {"M", "K", "C"}) as scipy.sparse CSC from a matrices NPZ."""
+    with np.load(path) as z:
+        out = {}
+        for pre in sorted({k.rsplit("_", 1)[0] for k in z.files}):
+            A = sp.csc_matrix((z[pre + "_data"], z[pre + "_indices"], z[pre + "_indptr"]),
+                              shape=tuple(z[pre + "_shape"]))
+            label, _, k = pre.rpartition("_")
+            (out.setdefault(label, {}) if label else out)[k] = A
+    return out
+
+
 def _physical(p, value):
     return p.nominal * (1 + value) if p.nominal is not None else value
 
@@ -69,7 +114,8 @@ def summarize(case, problem, search):
     theta0 = np.array([p.initial for p in params.params])
     theta = problem.theta(z_best)
     r, J = problem.residuals(z_best)
-    cov_z, s2, dof = standard_errors(J, r, problem.n_used)
+    G = problem.constraint_jacobian()
+    cov_z, s2, dof = standard_errors(J, r, problem.n_used, G)
     cov_theta = params.T @ cov_z @ params.T.T
     se_theta = np.sqrt(np.clip(np.diag(cov_theta), 0, None))
     near = search.near_best
@@ -128,7 +174,7 @@ def summarize(case, problem, search):
             "scale": ("anchored by total mass" if cfg.parameters.total_mass is not None
                       else "fixed by force input" if tg.excitation == "force"
                       else "anchored by fixed mass parameter(s)"),
-            **jacobian_report(J, params.z_names)},
+            **jacobian_report(J, params.z_names, G=G)},
         "solver": {"name": cfg.solver.name, "options": cfg.solver.options,
                    "compiled": problem.compiled, "status": search.best.status,
                    "iterations": search.best.iterations, "seconds": search.best.seconds},

@@ -19,10 +19,11 @@ passive chain-like structure has, so they hold whatever the parameter values:
   resonance is the driving point; if it is not at the floor the case names,
   the force floor (or the channel labels) is wrong.
 * **Channel order.** The measured operating shapes at the resonances (the
-  quadrature vectors) are compared by MAC with the nominal model's mode shapes
-  (shapes are far less sensitive than frequencies to ordinary parameter
-  errors); when exchanging two channels' data matches much better, the
-  channels are swapped.
+  quadrature vectors) are compared by MAC with the nominal model's mode shapes;
+  when exchanging two channels' data matches much better, and (shear frames) the
+  lower floor of the pair moves more than the upper one in the first mode, which
+  no shear chain can do, the channels are swapped. The nominal shapes alone are
+  not enough: with stiffness changes of 30 % a false exchange can match better.
 * **Coherence and H1 against H2.** |H1| / |H2| = gamma^2, so the gap between
   the two estimators is -10 log10(gamma^2) dB; dips at resonances point to
   input noise or force drop-out. With one segment, gamma^2 = 1 by construction
@@ -160,6 +161,20 @@ def _model_shapes(case, floors, n_modes):
     return np.array([V[fl - 1] if fl > 0 else np.zeros(V.shape[1]) for fl in floors])
 
 
+def _first_mode_disorder(case, Q, sig, floors, pair):
+    """True when, as labelled, the lower floor of the pair moves more than the upper
+    one in the first mode: impossible in a shear chain, whose lowest mode grows with
+    height whatever its masses and stiffnesses (the nominal shapes compared by MAC
+    are not: a 30 % stiffness change moves them enough to favour a false swap).
+    Other models keep the MAC test alone."""
+    if case.config.model.type != "shear_frame":
+        return True
+    a, b = sorted(pair, key=lambda c: floors[c])
+    if not (sig[a, 0] and sig[b, 0]) or floors[a] == 0:
+        return False
+    return abs(Q[a, 0]) > abs(Q[b, 0])
+
+
 def _antiresonances(f, D, peaks):
     """Per channel, the zeros (anti-resonances) between consecutive resonances.
 
@@ -240,7 +255,8 @@ def screen(case):
             base, (best, pair) = swap_test(Phi, Q, floors)
             checks["shape_mac"] = {"as_labelled": base, "best_exchange": best,
                                    "exchange": [names[c] for c in pair] if pair else None}
-            if pair and best >= base + MAC_GAIN and best >= MAC_GOOD:
+            if (pair and best >= base + MAC_GAIN and best >= MAC_GOOD
+                    and _first_mode_disorder(case, Q, sig, floors, pair)):
                 swap = pair
                 a, b = pair
                 errors.append({"kind": "swapped_channels", "channels": [names[a], names[b]],

@@ -24,8 +24,10 @@ from .metrics import fdac, fdac_overall, frac
 from .peakpick import compare_modes
 from .plots import frf_quantity, plot_frf_overlays
 from .provenance import provenance
+from .recentre import recentre
+from .continuation import band_continuation
 from .report import write_report
-from .results import parameters_table, summarize, write_atomic, write_json
+from .results import parameters_table, summarize, with_matrix_file, write_atomic, write_json
 from .executors import Setup
 from .search import SearchConfig, scatter_search
 from .verify import plot_replay, replay
@@ -50,10 +52,27 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
                             setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
     if search.resumed:
         log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
+    if cfg.search.band_continuation and not search.interrupted:
+        # one more start: fit the low band first, then widen it (nlp.continuation)
+        c_problem, c_res = band_continuation(case, cfg.search.band_continuation,
+                                             log=lambda m: log(tag + m))
+        search = _with_start(search, c_res)
+        if c_res.success and c_res.f < search.best.f:
+            log(f"{tag}band continuation beats the search's best start (f {c_res.f:.6g} < "
+                f"{search.best.f:.6g})")
+            problem, search = c_problem, replace(search, best=c_res)
+    recentred = None
+    if problem.backend == "reduced" and not search.interrupted:
+        # the search ran on the nominal basis: move the basis to the fit and refit (nlp.recentre)
+        problem, best, recentred = recentre(case, problem, search.best,
+                                            log=lambda m: log(tag + m))
+        search = replace(_with_start(search, best), best=best)
     result = summarize(case, problem, search)
+    if recentred is not None:
+        result["reduced_basis"] = recentred
     result["provenance"] = prov
     os.makedirs(out, exist_ok=True)
-    write_json(os.path.join(out, "result.json"), result)
+    write_json(os.path.join(out, "result.json"), with_matrix_file(result, "matrices", out))
     table = parameters_table(result)
     write_atomic(os.path.join(out, "parameters.csv"), table)
     mats = result["matrices"]
@@ -64,6 +83,12 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
                    os.path.join(out, "selection.png"), channel_names=[c.name for c in case.channels])
     _log_result(result, table, log, tag)
     return case, result, search.interrupted
+
+
+def _with_start(search, res):
+    """The search with one more finished local solve (listed after its starts)."""
+    return replace(search, results=search.results + [res],
+                   indices=list(search.indices) + [max(search.indices, default=-1) + 1])
 
 
 def _log_result(result, table, log, tag):
@@ -136,6 +161,17 @@ def _table1(results, average):
         lines.append(",".join([f"Updated ({label})"] + [f"{upd[p['name']]:.6g}" for p in cols]))
     lines.append(",".join(["Average of the updated"] + [f"{average[p['name']]:.6g}" for p in cols]))
     return "\n".join(lines) + "\n"
+
+
+def _model_file(summary, out):
+    """summary.json's model: large M, K, C to model.npz (sparse), modal data kept in the JSON."""
+    model = summary["model"]
+    mats = {k: model[k] for k in "MKC"}
+    doc = with_matrix_file({"model": mats}, "model", out, name="model.npz")
+    if doc["model"] is mats:
+        return summary
+    rest = {k: v for k, v in model.items() if k not in "MKC"}
+    return {**summary, "model": {**rest, "matrices": doc["model"]}}
 
 
 def run(cfg, out, log=print, resume=False, ckpt_out=None):
@@ -229,7 +265,7 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
         rflags = replay_flags(summary["time_domain"])
         summary["flags"] += rflags
         _log_flags(rflags, log)
-    write_json(os.path.join(out, "summary.json"), summary)
+    write_json(os.path.join(out, "summary.json"), _model_file(summary, out))
     write_report(out)
     if interrupted:
         log(f"interrupted: finished starts are kept in "

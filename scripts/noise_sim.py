@@ -174,8 +174,9 @@ def null_case(route, folder, seed, frequencies=None):
         with open(os.path.join(str(folder), "frf.csv"), "w") as fh:
             fh.write("".join(f"{fk:.6f}," + ",".join(repr(complex(h)).strip("()") for h in col)
                              + "\n" for fk, col in zip(f, H.T)))
-        return case_yaml(folder, {"file": "frf.csv", "format": "complex", "channels": chans},
-                         frequencies)
+        # simulated per bin in the frequency domain: no window, no resolution bias
+        return case_yaml(folder, {"file": "frf.csv", "format": "complex", "channels": chans,
+                                  "window": "none"}, frequencies)
     n_avg = 30
     U = _cgauss(rng, n_avg, f.size)
     X = U + 0.05 * _cgauss(rng, n_avg, f.size)
@@ -186,7 +187,7 @@ def null_case(route, folder, seed, frequencies=None):
     s_yy = np.mean(np.abs(Y) ** 2, axis=0)
     np.savez(os.path.join(str(folder), "frf.npz"), f=f, H=s_xy / s_xx,
              coherence=np.abs(s_xy) ** 2 / (s_xx * s_yy), n_averages=n_avg)
-    return case_yaml(folder, {"file": "frf.npz", "channels": chans}, frequencies)
+    return case_yaml(folder, {"file": "frf.npz", "channels": chans, "window": "none"}, frequencies)
 
 
 def reduced_chi2(path, starts=8):

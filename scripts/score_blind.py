@@ -1,9 +1,10 @@
 """Score `frf-nlp diagnose` on the blind benchmark (scripts/make_blind_benchmark.py).
 
-    python scripts/score_blind.py --bench blind [--timeout 900] [--only 00,13] [--summary-only]
+    python scripts/score_blind.py --bench blind [--timeout 900] [--only 00,13] [--jobs 2] [--summary-only]
 
 Each case runs as its own `python -m nlp diagnose CASE.yaml --out CASE/diagnosis`
 subprocess with a time limit; the diagnosis reads only case.yaml and the data.
+--jobs N runs N cases at once (each case file asks for one worker).
 truth.json is read here, afterwards. One JSON line per case is appended to
 BENCH/scores.jsonl as soon as the case finishes, so an interrupted scoring resumes
 where it stopped (cases already in the file are not run again; delete the file
@@ -28,7 +29,9 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from collections import defaultdict
 
 import numpy as np
@@ -144,6 +147,7 @@ def main():
     ap.add_argument("--bench", default="blind")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per case")
     ap.add_argument("--only", help="comma-separated case-name prefixes, run in this order")
+    ap.add_argument("--jobs", type=int, default=1, help="cases run at the same time")
     ap.add_argument("--summary-only", action="store_true", help="print the scores already in the file")
     a = ap.parse_args()
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -159,21 +163,28 @@ def main():
     names = sorted(d for d in os.listdir(a.bench) if os.path.isfile(os.path.join(a.bench, d, "case.yaml")))
     if a.only:   # in the order given
         names = [d for p in a.only.split(",") for d in names if d.startswith(p)]
+    todo = []
     for name in names:
         if name in rows:
             print(_line(rows[name]), flush=True)
-            continue
-        if a.summary_only:
-            continue
+        elif not a.summary_only:
+            todo.append(name)
+    lock = threading.Lock()
+
+    def one(name):
         folder = os.path.join(a.bench, name)
         code, err, seconds, res = _run(folder, a.timeout)
         with open(os.path.join(folder, "truth.json")) as fh:
             truth = json.load(fh)
         r = score_case(name, truth, code, err, seconds, res, SIZES)
-        with open(log, "a") as fh:
-            fh.write(json.dumps(r) + "\n")
-        rows[name] = r
-        print(_line(r), flush=True)
+        with lock:  # one whole line per finished case: an interrupted scoring resumes
+            with open(log, "a") as fh:
+                fh.write(json.dumps(r) + "\n")
+            rows[name] = r
+            print(_line(r), flush=True)
+
+    with ThreadPoolExecutor(max(1, a.jobs)) as pool:
+        list(pool.map(one, todo))
     summary([rows[n] for n in names if n in rows], SIZES)
     return 0
 

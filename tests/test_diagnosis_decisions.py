@@ -232,3 +232,25 @@ def test_extra_mode_found_with_its_channels_and_nothing_else():
     H_same = _accelerance(M, C, K, 1, rng, noise=0.01)
     Lx = np.log(np.abs(H_same))
     assert extra_modes(F, Lx, La, local_sigma(Lx), np.ones_like(Lx, bool)) == []
+
+
+def test_modal_share_of_a_story_dashpot():
+    """A dashpot that is the only damping supplies all of every mode's damping;
+    Rayleigh damping has no excess anywhere; a 12 N s/m dashpot over 1 % Rayleigh
+    damping dominates (the phi^T C phi of each mode checked by hand-built sums)."""
+    from nlp.diagnosis.priors import DOMINANT, _excess, modal_share
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.01)
+    P = story_patterns(3)
+    only = 7.0 * P[1]
+    share = modal_share(M, K, only, _excess(only, M, K)[0])
+    np.testing.assert_allclose(share[1], 1.0, rtol=1e-10)
+    assert np.all(share[[0, 2]] == 0.0)
+    np.testing.assert_allclose(modal_share(M, K, C, _excess(C, M, K)[0]), 0.0, atol=1e-9)
+    C2 = C + 12.0 * P[1]
+    ex = _excess(C2, M, K)[0]
+    _, phi = eigh(K, M)
+    drift = phi[1] - phi[0]
+    by_hand = ex[1] * drift ** 2 / np.array([phi[:, r] @ C2 @ phi[:, r] for r in range(3)])
+    np.testing.assert_allclose(modal_share(M, K, C2, ex)[1], by_hand, rtol=1e-10)
+    assert by_hand.max() > DOMINANT

@@ -77,3 +77,28 @@ def test_casadi_frf_matches_numpy(excitation, output, rng):
     out = [fn(wk) for wk in omega]
     H = np.array([hr.full().ravel() + 1j * hi.full().ravel() for hr, hi in out]).T
     np.testing.assert_allclose(H, H_ref, rtol=1e-9, atol=1e-12 * np.abs(H_ref).max())
+
+
+@pytest.mark.parametrize("proportional", [True, False])
+def test_large_model_routes_equal_a_dense_direct_solve(proportional, rng):
+    """Above LARGE_N DOFs: Rayleigh damping goes by the all-mode sum, other damping by one sparse
+    LU per frequency; both equal numpy's dense solve of (K - w^2 M + jwC) q = b to 1e-8."""
+    import scipy.sparse as sp
+    from nlp import frf as frf_mod
+    n = frf_mod.LARGE_N + 50
+    k = rng.uniform(5e5, 1.5e6, n)
+    K = sp.diags([k + np.append(k[1:], 0), -k[1:], -k[1:]], [0, 1, -1]).toarray()
+    K[0, n - 1] = K[n - 1, 0] = -1e4  # a non-banded coupling
+    K[0, 0] += 1e4
+    K[n - 1, n - 1] += 1e4
+    M = np.diag(rng.uniform(80, 120, n))
+    C = 0.3 * M + 2e-4 * K
+    if not proportional:
+        C[3, 3] += 50.0
+    assert (frf_mod._rayleigh_coefficients(M, C, K) is not None) == proportional
+    omega = np.array([10.0, 35.0, 80.0])
+    H = frf_dynamic_stiffness(M, C, K, omega, "force", n - 1, "accelerance")
+    b = np.zeros(n)
+    b[n - 1] = 1
+    ref = np.array([-(w ** 2) * np.linalg.solve(K - w ** 2 * M + 1j * w * C, b) for w in omega]).T
+    assert np.max(np.abs(H - ref)) < 1e-8 * np.abs(ref).max()

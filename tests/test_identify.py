@@ -42,6 +42,14 @@ def test_null_space_is_real_and_seen_by_the_jacobian(tmp_path):
     assert rep["weak_directions"], rep["singular_values"][-3:]
     names = rep["weak_directions"][0]["combination"]
     assert any(n.startswith("k") for n in names) and any(n.startswith("m") for n in names)
+    # on the anchor's surface the direction is gone, and the covariance is bounded
+    from nlp.identify import gauss_newton_covariance
+    G = pr.constraint_jacobian()
+    assert G.shape == (1, pr.params.n_z)
+    assert not jacobian_report(J, pr.params.z_names, rtol=1e-6, G=G)["weak_directions"]
+    d_free = np.diag(np.linalg.pinv(J.T @ J, rcond=1e-20))
+    d_anch = np.diag(gauss_newton_covariance(J, G))
+    assert d_anch.max() < 1e-6 * d_free.max()
 
 
 def test_force_input_has_no_null_space(tmp_path):
@@ -69,3 +77,36 @@ def test_standard_errors_match_monte_carlo():
     cov, s2, dof = standard_errors(A, A @ x - y, 60)
     assert dof == 57 and abs(np.sqrt(s2) / sigma - 1) < 0.25
     np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.std(est, axis=0), rtol=0.3)
+
+
+def test_standard_errors_on_the_anchor_surface_match_monte_carlo():
+    """A null direction of J fixed only by an equality constraint (the total-mass
+    anchor of a base-excited frame): the errors must be those of the constrained
+    estimate, found here by solving the KKT system on repeated noisy data."""
+    from nlp.identify import jacobian_report
+    rng = np.random.default_rng(1)
+    A = rng.standard_normal((80, 4))
+    null = np.array([1.0, 1.0, -1.0, 0.5])
+    A -= np.outer(A @ null, null) / (null @ null)  # A null = 0: the scale direction
+    G = np.array([[1.0, 2.0, 0.0, 1.0]])           # the anchor, G x = g0
+    x_true = np.array([0.3, -0.2, 0.1, 0.4])
+    g0 = G @ x_true
+    sigma = 0.05
+    K = np.block([[A.T @ A, G.T], [G, np.zeros((1, 1))]])
+
+    def fit(y):
+        return np.linalg.solve(K, np.concatenate([A.T @ y, g0]))[:4]
+
+    est = np.array([fit(A @ x_true + sigma * rng.standard_normal(80)) for _ in range(3000)])
+    y = A @ x_true + sigma * rng.standard_normal(80)
+    x = fit(y)
+    cov, s2, dof = standard_errors(A, A @ x - y, 80, G)
+    assert dof == 77
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), np.std(est, axis=0), rtol=0.3)
+    # without the constraint the null direction makes the errors meaningless
+    cov_free, _, _ = standard_errors(A, A @ x - y, 80)
+    assert not np.allclose(np.sqrt(np.diag(cov_free)), np.std(est, axis=0), rtol=0.3)
+    # and the anchored direction is not reported as weak
+    assert jacobian_report(A, list("abcd"), G=G)["weak_directions"] == []
+    assert jacobian_report(A, list("abcd"))["weak_directions"]
+

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from ..identify import gauss_newton_covariance
+
 __all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "SIGNIFICANCE", "AGREE", "dispersion",
            "quasi_covariance", "scaled_delta_bic", "effect_terms", "significance", "agree",
            "tied"]
@@ -29,15 +31,16 @@ def dispersion(chi2, dof):
     return max(1.0, float(chi2) / max(int(dof), 1))
 
 
-def quasi_covariance(J, r, dof):
-    """Gauss-Newton covariance phi (J^T J)^-1 of the decision variables.
+def quasi_covariance(J, r, dof, G=None):
+    """Gauss-Newton covariance phi (J^T J)^-1 of the decision variables, on the
+    surface of the equality constraints G dz = 0 (the total-mass anchor).
 
     phi = max(1, r^T r / dof): residuals are already divided by their noise, so
     phi = 1 is the noise alone; a larger misfit inflates the errors, a smaller
     one never shrinks them below the noise-only value.
     """
     phi = dispersion(float(r @ r), dof)
-    return phi * np.linalg.pinv(J.T @ J), phi
+    return phi * gauss_newton_covariance(J, G), phi
 
 
 def scaled_delta_bic(chi2, chi2_ref, k, n_fit, phi):

@@ -85,6 +85,20 @@ class LinearSystem:
                    U=None if U is None else np.asarray(U, float),
                    dashpots=tuple(_csc(D) for D in damping.dashpots), b0=b0, b_infl=b_infl, E=E)
 
+    def shifted(self, alpha, beta):
+        """The same system re-expressed about theta: M0 -> M(beta), K0 -> K(alpha), b0 -> b(beta).
+
+        Eqns 23-24 at the given relative changes; the influence matrices stay, so
+        the result describes the model at theta + (alpha', beta') for any further
+        changes. The re-centred reduced basis is computed from it.
+        """
+        alpha, beta = np.asarray(alpha, float), np.asarray(beta, float)
+        K = self.K0 + sum((a * A for a, A in zip(alpha, self.K_infl)), sp.csc_matrix(self.K0.shape))
+        M = self.M0 + sum((b * A for b, A in zip(beta, self.M_infl)), sp.csc_matrix(self.M0.shape))
+        b0 = self.b0 + sum((b * v for b, v in zip(beta, self.b_infl)), np.zeros(self.n))
+        return LinearSystem(M0=_csc(M), K0=_csc(K), M_infl=self.M_infl, K_infl=self.K_infl,
+                            U=self.U, dashpots=self.dashpots, b0=b0, b_infl=self.b_infl, E=self.E)
+
     def project(self, Psi):
         """The same system on q = Psi eta (Galerkin: every matrix A -> Psi^T A Psi)."""
         Pt = Psi.T
