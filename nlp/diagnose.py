@@ -77,11 +77,12 @@ def _target(case, idx, sigma):
                   channels=tg.channels, excitation=tg.excitation, force_dof=tg.force_dof)
 
 
-def _problem(case, target, enrichments=(), values=None, compile=True):
+def _problem(case, target, enrichments=(), values=None, compile=True, optimize=True):
+    """The updating NLP; optimize=False compiles quicker, slower-running C (a refit)."""
     cfg = case.config
     refs = _refs(case)
     params = extend_parameters(case.params, enrichments, refs, values)
-    solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), compile)
+    solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), compile, optimize)
     residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
     return UpdatingProblem(case.model, case.damping, params, target, residual=residual,
                            solver=solver, total_mass=cfg.parameters.total_mass,
@@ -271,7 +272,8 @@ def _quasi_se(pr, z):
 def _refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
     """Fit the current model plus candidate e: values, quasi-likelihood errors, chi-squares."""
     refs = _refs(case)
-    pr = _problem(case, target, current + [e])
+    # 3-5 solves: gcc -O2 would take longer than they do (same numbers at -O0)
+    pr = _problem(case, target, current + [e], optimize=False)
     k = len(e.names)
     sp = e.spec(refs)
     # start the added parameters inside their box, not on a zero bound
@@ -483,7 +485,7 @@ def _prune(case, target, found, state, n_fit, held, sig_held, log):
         best_drop = None
         for r in found:
             keep = [x for x in found if x is not r]
-            pr = _problem(case, target, [x["enrichment"] for x in keep])
+            pr = _problem(case, target, [x["enrichment"] for x in keep], optimize=False)
             z = np.concatenate([state["z"][:pr.params.n_z - sum(len(x["parameters"]) for x in keep)]]
                                + [_params_z(pr, x, state) for x in keep])
             res = _fit(pr, [z])
@@ -619,7 +621,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
             alternatives += accepted
             break
         if best["problem"] is None:  # refitted in a worker: rebuild its NLP here
-            best["problem"] = _problem(case, target, state["current"] + [best["enrichment"]])
+            best["problem"] = _problem(case, target, state["current"] + [best["enrichment"]],
+                                       optimize=False)
         found.append(best)
         alternatives += accepted[1:]
         state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
@@ -771,7 +774,7 @@ def _hold_on_others(others, state, accepted, log):
     key = len(state["current"])
     for o in others:
         if key not in o["ref"]:
-            pr = _problem(o["case"], o["target"], state["current"])
+            pr = _problem(o["case"], o["target"], state["current"], optimize=False)
             o["ref"][key] = 2 * _fit(pr, [state["z"], pr.z0]).f
     kept, rejected, records = [], [], []
     for r in accepted:
@@ -780,7 +783,8 @@ def _hold_on_others(others, state, accepted, log):
         s1 = [r["uncertainty"][n] for n in names]
         holds_all = True
         for o in others:
-            pr2 = _problem(o["case"], o["target"], state["current"] + [r["enrichment"]])
+            pr2 = _problem(o["case"], o["target"], state["current"] + [r["enrichment"]],
+                           optimize=False)
             res = _fit(pr2, [r["z"], pr2.z0])
             th2, se2 = pr2.theta(res.z), _quasi_se(pr2, res.z)[0]
             ix = [pr2.params.names.index(n) for n in names]

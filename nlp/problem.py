@@ -98,6 +98,7 @@ class SolverConfig:
     name: str = "ipopt"
     options: dict = field(default_factory=dict)
     compile: bool = True
+    optimize: bool = True  # False: -O0 C, quicker to build, for a few solves (codegen)
 
     def nlpsol_options(self):
         opts = {k: (dict(v) if isinstance(v, dict) else v)
@@ -310,7 +311,8 @@ class UpdatingProblem:
         self.compiled = False
         if self.solver_config.compile:
             # One C file: the per-frequency SX code once, the maps as C loops.
-            lib = compile_library(fns, stem=f"frfnlp_n{self.model.n}_N{N}")
+            lib = compile_library(fns, stem=f"frfnlp_n{self.model.n}_N{N}",
+                                  optimize=self.solver_config.optimize)
             if lib is not None:
                 # "objective" finds its derivative "jac_objective" in the library
                 fns = [ca.external(f.name(), lib) for f in fns if f.name() != "jac_objective"]

@@ -4,6 +4,7 @@ Real processes and real signals: SIGKILL at random times during the write phase
 leaves --out either untouched or the complete new result, never a mix."""
 
 import hashlib
+import math
 import json
 import os
 import random
@@ -327,6 +328,31 @@ def test_damaged_cached_library_is_rebuilt(tmp_path, monkeypatch):
         fresh = str(tmp_path / f"eval{len(damage)}.so")
         shutil.copy(again, fresh)
         assert float(ca.external("rel_probe", fresh)([1.0, 2.0])) == 6.0
+
+
+def test_cache_key_separates_values_and_optimisation(tmp_path, monkeypatch):
+    """A constant baked into the C (a nominal value) and the -O level are part of the
+    cache key; -O0 and -O2 give the same numbers as CasADi's own evaluation."""
+    from nlp.codegen import compile_library
+    import shutil
+    if not shutil.which("gcc") and not shutil.which("cc"):
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("FRF_NLP_CACHE", str(tmp_path))
+    x = ca.SX.sym("x", 2)
+    # the same structure with two nominal stiffnesses: k x1^2 + sin(x2) / k
+    f1 = ca.Function("key_probe", [x], [1000.0 * x[0] ** 2 + ca.sin(x[1]) / 1000.0])
+    f2 = ca.Function("key_probe", [x], [2000.0 * x[0] ** 2 + ca.sin(x[1]) / 2000.0])
+    libs = {(k, opt): compile_library([f], stem="keytest", optimize=opt)
+            for k, f in ((1, f1), (2, f2)) for opt in (True, False)}
+    assert len(set(libs.values())) == 4
+    pt = [0.3, 1.1]
+    for (k, opt), lib in libs.items():
+        fresh = str(tmp_path / f"eval_{k}_{opt}.so")  # the loader caches libraries by name
+        shutil.copy(lib, fresh)
+        got = float(ca.external("key_probe", fresh)(pt))
+        want = 1000.0 * k * 0.09 + math.sin(1.1) / (1000.0 * k)
+        assert got == pytest.approx(want, rel=1e-14)
+        assert got == float((f1 if k == 1 else f2)(pt))
 
 
 @pytest.mark.slow
