@@ -633,6 +633,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
     inside = _inside_model_class(cfg, case, state, absorbed, log)
+    phase = _phase_check(case, state, np.union1d(fit, held), log)
+    if phase:
+        inside["findings"] += phase["findings"]
     final = {(r["physics"], repr(r["location"])) for r in found}
     consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
                    or not c["holds"]]
@@ -645,7 +648,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed,
-           "whole": whole, "phi": phis[0] if phis else 1.0,
+           "whole": whole, "phi": phis[0] if phis else 1.0, "phase": phase,
            "screening": screening and screening["report"], "baseline_converged": b_conv}
     return _verdict(cfg, case, out, log, ctx)
 
@@ -730,6 +733,21 @@ def _inside_model_class(cfg, case, state, absorbed, log):
                                                for o in outside))
     return {"findings": findings, "parameter_changes": changes, "damping": decomposition,
             "absorbed": informative}
+
+
+def _phase_check(case, state, idx, log):
+    """Sensor delays from the phase residual of the final model (nlp/diagnosis/phase.py),
+    when the FRFs have a phase that the fit did not use (log-magnitude residual)."""
+    from .diagnosis.phase import delay_check
+    if (not case.has_phase or case.config.objective.residual == "complex"
+            or getattr(case, "noise", None) is None):
+        return None
+    Ha = state["problem"].channel_frfs(state["z"], 2 * np.pi * case.f[idx])
+    out = delay_check(case.f[idx], case.H[:, idx], Ha, case.noise.sigma_phase[:, idx],
+                      [c.name for c in case.channels])
+    for f in out["findings"]:
+        log("  phase: " + f["statement"])
+    return out
 
 
 # ------------------------------------------------------------- other tests
@@ -1012,6 +1030,8 @@ def _verdict(cfg, case, out, log, ctx):
               "suggested_measurements": suggestions, "provenance": provenance(cfg)}
     if ctx.get("screening") is not None:
         result["screening"] = ctx["screening"]
+    if ctx.get("phase") is not None:
+        result["phase_check"] = ctx["phase"]["channels"]
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, ctx["cells"], cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)
