@@ -839,6 +839,11 @@ def _whole_band(case, base, zb, improved, zi, fit):
     from .diagnosis.band import MAX_SCATTER, band_map, band_mask, extra_modes, local_sigma
     fc = case.config.frequencies
     mask = band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence)
+    rec = getattr(case, "records", None)
+    if rec is not None and getattr(rec, "fs", None):
+        # above fs / 2.56 the acquisition's anti-alias filter shapes the spectra: an
+        # analyzer's usable band ends there, and a roll-off is no resonance
+        mask = mask & (case.f <= rec.fs / 2.56)[None, :]
     idx = np.nonzero(mask.any(axis=0))[0]
     if idx.size < 5:
         return None
@@ -851,6 +856,9 @@ def _whole_band(case, base, zb, improved, zi, fit):
     Lx = ln_det(case.H[:, idx])
     sig = local_sigma(Lx)
     m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there
+    if getattr(case, "noise", None) is not None:
+        # nor where the route's own noise model says the estimate is noise
+        m = m & (case.noise.sigma_ln[:, idx] < MAX_SCATTER)
     fit_local = np.nonzero(np.isin(idx, fit))[0]
     maps = {}
     for key, pr, z in (("before", base, zb), ("after", improved, zi)):
