@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import shear_K
+from conftest import frame_parameter_set, shear_K
 from nlp.case import assemble
 from nlp.config import load_case
 from nlp.errors import InputError
@@ -131,25 +131,19 @@ def test_two_storey_base_channel_is_the_hand_derived_base_over_table():
     a 2-storey frame on a base mass, spring and dashpot; the rigid-base model reads 1."""
     from nlp.damping import GeneralDamping
     from nlp.model import shear_frame
-    from nlp.parameters import Parameter, ParameterSet
     from nlp.problem import Channel, SolverConfig, Target
 
     m, k, c = np.array([4.0, 3.0]), np.array([3000.0, 2400.0]), np.array([2.0, 1.5])
     m_b, k_b, c_b = 2.5, 9000.0, 12.0
     w = 2 * np.pi * np.linspace(0.3, 12.0, 120)
     model, damping = shear_frame(m, k), GeneralDamping(shear_K(c))
-    ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=k[i]) for i in range(2)]
-    ps += [Parameter(f"m{i + 1}", "mass", 0.0, -0.5, 1.0, fixed=True, nominal=m[i])
-           for i in range(2)]
-    lo, hi = damping.default_bounds()
-    ps += [Parameter(nm, "damping", t, a, b) for nm, t, a, b in
-           zip(damping.names, damping.initial(), lo, hi)]
+    rigid_params = frame_parameter_set(m, k, damping)
     chans = (Channel("a0", BASE_DOF, "absolute_accelerance"),
              Channel("a1", 0, "absolute_accelerance"))
     tg = Target(w, np.ones((2, w.size), complex), np.ones((2, w.size)), chans, "ground")
     refs = {"m_ref": 3.5, "k_ref": 2700.0, "c_ref": 1.75}
     e = BaseFlexibility()
-    params = extend_parameters(ParameterSet(tuple(ps), 2, 2), [e], refs,
+    params = extend_parameters(rigid_params, [e], refs,
                                [[m_b, np.log10(k_b), c_b]])
     pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
                          enrichments=[e], refs=refs)
@@ -157,6 +151,6 @@ def test_two_storey_base_channel_is_the_hand_derived_base_over_table():
     expected = _base_over_table(w, m, k, c, m_b, k_b, c_b)
     np.testing.assert_allclose(H[0], expected, rtol=1e-9)
     assert np.max(np.abs(np.abs(expected) - 1.0)) > 0.5      # the base visibly moves
-    rigid = UpdatingProblem(model, damping, ParameterSet(tuple(ps), 2, 2), tg,
+    rigid = UpdatingProblem(model, damping, rigid_params, tg,
                             solver=SolverConfig(compile=False))
     np.testing.assert_allclose(rigid.channel_frfs(rigid.z0, w)[0], 1.0)
