@@ -547,12 +547,13 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
 
     Forward selection: each round adds the best accepted candidate to the model
     and looks again, until the model explains the data, nothing more is
-    accepted, candidates tie (ambiguous), or max_findings are found. When the
-    fitted windows are explained but the held-out shoulders are not, and no
-    family is accepted, the windows are widened 3x once and the search repeated
-    (the effect lives off the resonances). Then: effects inside the model class
-    (priors, damping decomposition), agreement with the case's other tests, and
-    the whole measured band.
+    accepted, candidates tie (ambiguous), or max_findings are found. When no
+    family is accepted and the held-out shoulders are not explained while the
+    fitted windows are (or the shoulders' misfit is over 3x the windows'), the
+    windows are widened 3x once and the search repeated (the effect lives off
+    the resonances, e.g. an appendage tuned between two modes). Then: effects
+    inside the model class (priors, damping decomposition), sensor delays from
+    the phase, agreement with the case's other tests, and the whole measured band.
     """
     case = assemble(cfg)
     screening = _screen(case, out, log) if widen == 1 else None
@@ -629,13 +630,17 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
     if len(found) > 1:
         found, state = _prune(case, target, found, state, n_fit, held, sig_held, log)
-    if (widen == 1 and not found and not indistinct and chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)
-            and not _adequate(chi_b, nu, held_b)):
-        log("the fitted windows are explained but the held-out shoulders are not: "
+    off_peak = (chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)   # windows explained, shoulders not
+                or held_b > 3 * chi_b / nu)                  # or the shoulders far worse
+    if widen == 1 and not found and not indistinct and off_peak and not _adequate(chi_b, nu, held_b):
+        log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
         return diagnose(cfg, out, log, top, max_findings, widen=3)
     nonlin = _nonlinearity(cfg, log)
     inside = _inside_model_class(cfg, case, state, absorbed, log)
+    phase = _phase_check(case, state, np.union1d(fit, held), log)
+    if phase:
+        inside["findings"] += phase["findings"]
     final = {(r["physics"], repr(r["location"])) for r in found}
     consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
                    or not c["holds"]]
@@ -648,7 +653,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed,
-           "whole": whole, "phi": phis[0] if phis else 1.0,
+           "whole": whole, "phi": phis[0] if phis else 1.0, "phase": phase,
            "screening": screening and screening["report"], "baseline_converged": b_conv}
     return _verdict(cfg, case, out, log, ctx)
 
@@ -733,6 +738,21 @@ def _inside_model_class(cfg, case, state, absorbed, log):
                                                for o in outside))
     return {"findings": findings, "parameter_changes": changes, "damping": decomposition,
             "absorbed": informative}
+
+
+def _phase_check(case, state, idx, log):
+    """Sensor delays from the phase residual of the final model (nlp/diagnosis/phase.py),
+    when the FRFs have a phase that the fit did not use (log-magnitude residual)."""
+    from .diagnosis.phase import delay_check
+    if (not case.has_phase or case.config.objective.residual == "complex"
+            or getattr(case, "noise", None) is None):
+        return None
+    Ha = state["problem"].channel_frfs(state["z"], 2 * np.pi * case.f[idx])
+    out = delay_check(case.f[idx], case.H[:, idx], Ha, case.noise.sigma_phase[:, idx],
+                      [c.name for c in case.channels])
+    for f in out["findings"]:
+        log("  phase: " + f["statement"])
+    return out
 
 
 # ------------------------------------------------------------- other tests
@@ -825,6 +845,11 @@ def _whole_band(case, base, zb, improved, zi, fit):
     from .diagnosis.band import MAX_SCATTER, band_map, band_mask, extra_modes, local_sigma
     fc = case.config.frequencies
     mask = band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence)
+    rec = getattr(case, "records", None)
+    if rec is not None and getattr(rec, "fs", None):
+        # above fs / 2.56 the acquisition's anti-alias filter shapes the spectra: an
+        # analyzer's usable band ends there, and a roll-off is no resonance
+        mask = mask & (case.f <= rec.fs / 2.56)[None, :]
     idx = np.nonzero(mask.any(axis=0))[0]
     if idx.size < 5:
         return None
@@ -837,6 +862,9 @@ def _whole_band(case, base, zb, improved, zi, fit):
     Lx = ln_det(case.H[:, idx])
     sig = local_sigma(Lx)
     m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there
+    if getattr(case, "noise", None) is not None:
+        # nor where the route's own noise model says the estimate is noise
+        m = m & (case.noise.sigma_ln[:, idx] < MAX_SCATTER)
     fit_local = np.nonzero(np.isin(idx, fit))[0]
     maps = {}
     for key, pr, z in (("before", base, zb), ("after", improved, zi)):
@@ -1016,6 +1044,8 @@ def _verdict(cfg, case, out, log, ctx):
               "suggested_measurements": suggestions, "provenance": provenance(cfg)}
     if ctx.get("screening") is not None:
         result["screening"] = ctx["screening"]
+    if ctx.get("phase") is not None:
+        result["phase_check"] = ctx["phase"]["channels"]
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, ctx["cells"], cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)

@@ -47,7 +47,7 @@ from scipy import signal
 
 __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
            "var_ln_transient", "kernel_moment", "resolution_bias", "rest_mask",
-           "rest_noise_psd", "local_scatter", "VAR_LN_MAX"]
+           "rest_noise_psd", "local_scatter", "second_difference_factor", "VAR_LN_MAX"]
 
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
 VAR_LN_MAX = math.pi ** 2 / 24
@@ -266,13 +266,39 @@ def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
 
 
 # ------------------------------------------------------------- local scatter
-def local_scatter(f, H, half_width=25):
+def second_difference_factor(window=None):
+    """Variance of a second difference of the errors of a windowed spectral estimate,
+    in units of the point variance: 6 - 8 rho_1 + 2 rho_2.
+
+    The DFT of a window w makes the noise of neighbouring bins correlated, with
+    complex correlation c_l = sum w^2 exp(-2 pi i l n / N) / sum w^2; an FRF
+    estimate (a ratio of cross- to auto-spectra) inherits rho_l = |c_l|^2. Boxcar
+    (one whole record) or ``None``/``"none"``: independent bins, factor 6. Hann:
+    c_1 = -2/3, c_2 = 1/6, factor 2.5, so a scatter that assumed 6 would make the
+    noise 1.55 x too small.
+    """
+    if window is None or window in ("none", "boxcar"):
+        return 6.0
+    from scipy.signal import get_window
+    N = 4096
+    w2 = get_window(window, N) ** 2
+    n = np.arange(N)
+    rho = [abs(np.sum(w2 * np.exp(-2j * np.pi * lag * n / N)) / np.sum(w2)) ** 2
+           for lag in (1, 2)]
+    return 6.0 - 8.0 * rho[0] + 2.0 * rho[1]
+
+
+def local_scatter(f, H, half_width=25, window=None):
     """Std of ln|H| and arg H from the robust scatter of second differences along frequency.
 
-    For independent errors of variance s^2 at each point, the second difference
-    has variance 6 s^2; the median absolute deviation in a sliding window of
-    2 half_width + 1 points (x 1.4826) is robust to the curvature of the
-    smooth FRF at its peaks.
+    For errors of variance s^2 at each point, the second difference has
+    variance :func:`second_difference_factor` x s^2 (6 for independent points;
+    less for a windowed estimate, whose neighbouring bins are correlated); the
+    median absolute deviation in a sliding window of 2 half_width + 1 points
+    (x 1.4826) is robust to the curvature of the smooth FRF at its peaks.
+
+    window : the estimate's analysis window (scipy name), or None for
+        independent points.
 
     Returns
     -------
@@ -282,6 +308,7 @@ def local_scatter(f, H, half_width=25):
     with np.errstate(divide="ignore"):
         lnH = np.log(np.where(H == 0, 1e-300, H))
     lnH = lnH.real + 1j * np.unwrap(lnH.imag, axis=1)
+    root = math.sqrt(second_difference_factor(window))
     d2 = lnH[:, 2:] - 2 * lnH[:, 1:-1] + lnH[:, :-2]
     out = []
     for part in (d2.real, d2.imag):
@@ -291,7 +318,7 @@ def local_scatter(f, H, half_width=25):
             j = min(max(k - 1, 0), n2 - 1)
             seg = part[:, max(j - half_width, 0):j + half_width + 1]
             med = np.median(seg, axis=1, keepdims=True)
-            s[:, k] = 1.4826 * np.median(np.abs(seg - med), axis=1) / math.sqrt(6)
+            s[:, k] = 1.4826 * np.median(np.abs(seg - med), axis=1) / root
         out.append(np.maximum(s, _FLOOR))
     return out[0], out[1]
 
@@ -315,7 +342,7 @@ def _from_records(case):
     s_n = None if mask is None else rest_noise_psd(np.vstack([x, y]), rec.fs, mask, case.f)
     if n_total == 1:
         if s_n is None:
-            s, sp = local_scatter(case.f, case.H)
+            s, sp = local_scatter(case.f, case.H, window=d.window)
             return NoiseModel(s, sp, "scatter", 1.0)
         kw = dict(fs=rec.fs, window=d.window, nperseg=n, noverlap=0, detrend="constant")
         _, p_xx = signal.welch(x, **kw)
@@ -361,7 +388,7 @@ def noise_model(case):
             var = np.minimum(var_ln_welch(case.coherence, n_eff) + bias2, VAR_LN_MAX)
             s = np.maximum(np.sqrt(var), _FLOOR)
             return NoiseModel(s, s.copy(), "frf_coherence", n_eff)
-    s, sp = local_scatter(case.f, case.H)
+    s, sp = local_scatter(case.f, case.H, window=case.config.data.window)
     return NoiseModel(np.sqrt(s ** 2 + bias2), np.sqrt(sp ** 2 + bias2), "scatter", 1.0)
 
 

@@ -20,6 +20,21 @@ TABLE1_INITIAL_M = np.full(4, 4.64)
 TABLE1_INITIAL_K = np.array([1019.0, 1217.0, 1420.0, 2473.0])
 
 
+def frame_parameter_set(m, k, damping):
+    """ParameterSet of a shear frame: free story stiffness changes, fixed masses, and the
+    damping model's own parameters (for tests that build an UpdatingProblem by hand)."""
+    from nlp.parameters import Parameter, ParameterSet
+
+    n = len(k)
+    ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=k[i]) for i in range(n)]
+    ps += [Parameter(f"m{i + 1}", "mass", 0.0, -0.5, 1.0, fixed=True, nominal=m[i])
+           for i in range(n)]
+    lo, hi = damping.default_bounds()
+    ps += [Parameter(nm, "damping", t, a, b) for nm, t, a, b in
+           zip(damping.names, damping.initial(), lo, hi)]
+    return ParameterSet(tuple(ps), n, n)
+
+
 def random_system(n, rng):
     """Random SPD M, K and a non-proportional SPD C."""
     A = rng.standard_normal((n, n))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import shear_K
+from conftest import frame_parameter_set, shear_K
 from nlp.case import assemble
 from nlp.config import load_case
 from nlp.errors import InputError
@@ -107,3 +107,50 @@ def test_negative_floor_is_refused(tmp_path):
     path = _case(tmp_path, f, np.ones((2, f.size), complex), [1, -1])
     with pytest.raises(InputError, match=r"data.channels\[1\].floor"):
         load_case(path)
+
+
+def _base_over_table(w, m, k, c, m_b, k_b, c_b):
+    """Hand-derived base/table transfer function of a 2-storey frame on a flexible base.
+
+    The frame above the base is a chain: floor 2 (m2) on story 2 (k2 + i w c2) has the
+    dynamic stiffness Z2 = -w^2 m2 k2' / (k2' - w^2 m2); floor 1 adds -w^2 m1, and story 1
+    in series gives Z1 = k1' Z / (k1' + Z). The base mass m_b on k_b' = k_b + i w c_b then
+    obeys (k_b' - w^2 m_b + Z1) X_b = k_b' X_g, and absolute accelerations are in the
+    ratio of absolute displacements: a_b / a_g = X_b / X_g.
+    """
+    k1, k2 = k[0] + 1j * w * c[0], k[1] + 1j * w * c[1]
+    Z2 = -w**2 * m[1] * k2 / (k2 - w**2 * m[1])
+    Z = -w**2 * m[0] + Z2
+    Z1 = k1 * Z / (k1 + Z)
+    kb = k_b + 1j * w * c_b
+    return kb / (kb - w**2 * m_b + Z1)
+
+
+def test_two_storey_base_channel_is_the_hand_derived_base_over_table():
+    """Channel a0 (floor 0) of the BaseFlexibility model equals the closed-form a_b/a_g of
+    a 2-storey frame on a base mass, spring and dashpot; the rigid-base model reads 1."""
+    from nlp.damping import GeneralDamping
+    from nlp.model import shear_frame
+    from nlp.problem import Channel, SolverConfig, Target
+
+    m, k, c = np.array([4.0, 3.0]), np.array([3000.0, 2400.0]), np.array([2.0, 1.5])
+    m_b, k_b, c_b = 2.5, 9000.0, 12.0
+    w = 2 * np.pi * np.linspace(0.3, 12.0, 120)
+    model, damping = shear_frame(m, k), GeneralDamping(shear_K(c))
+    rigid_params = frame_parameter_set(m, k, damping)
+    chans = (Channel("a0", BASE_DOF, "absolute_accelerance"),
+             Channel("a1", 0, "absolute_accelerance"))
+    tg = Target(w, np.ones((2, w.size), complex), np.ones((2, w.size)), chans, "ground")
+    refs = {"m_ref": 3.5, "k_ref": 2700.0, "c_ref": 1.75}
+    e = BaseFlexibility()
+    params = extend_parameters(rigid_params, [e], refs,
+                               [[m_b, np.log10(k_b), c_b]])
+    pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=[e], refs=refs)
+    H = pr.channel_frfs(pr.z0, w)
+    expected = _base_over_table(w, m, k, c, m_b, k_b, c_b)
+    np.testing.assert_allclose(H[0], expected, rtol=1e-9)
+    assert np.max(np.abs(np.abs(expected) - 1.0)) > 0.5      # the base visibly moves
+    rigid = UpdatingProblem(model, damping, rigid_params, tg,
+                            solver=SolverConfig(compile=False))
+    np.testing.assert_allclose(rigid.channel_frfs(rigid.z0, w)[0], 1.0)

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
-from conftest import shear_K
+from conftest import frame_parameter_set, shear_K
 from nlp.damping import GeneralDamping
 from nlp.model import shear_frame
-from nlp.parameters import Parameter, ParameterSet
 from nlp.physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                          NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
                          extend_parameters)
@@ -28,13 +27,7 @@ def _numpy_frf(M, C, K, Kh, excitation, dof=None):
 def _problem(enrichment, values, excitation="ground", outputs=("receptance",) * 3):
     model = shear_frame(m, k)
     damping = GeneralDamping(C0)
-    ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=k[i]) for i in range(3)]
-    ps += [Parameter(f"m{i + 1}", "mass", 0.0, -0.5, 1.0, fixed=True, nominal=m[i])
-           for i in range(3)]
-    lo, hi = damping.default_bounds()
-    ps += [Parameter(nm, "damping", t, a, b) for nm, t, a, b in
-           zip(damping.names, damping.initial(), lo, hi)]
-    params = extend_parameters(ParameterSet(tuple(ps), 3, 3), [enrichment], REF, [values])
+    params = extend_parameters(frame_parameter_set(m, k, damping), [enrichment], REF, [values])
     chans = tuple(Channel(f"c{i + 1}", i, o) for i, o in enumerate(outputs))
     tg = Target(W, np.ones((3, W.size), complex), np.ones((3, W.size)), chans, excitation,
                 None if excitation == "ground" else 0)

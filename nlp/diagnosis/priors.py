@@ -26,7 +26,9 @@ __all__ = ["PRIOR_OUT", "DAMPER_RATIO", "prior_sigmas", "prior_check", "story_pa
 
 PRIOR_OUT = 3.0      # a value more than 3 prior sigmas from nominal is "far outside its prior"
 DAMPER_RATIO = 3.0   # a story whose c_s / k_s is 3x the others' median is a concentrated damper
-DETERMINED = 3.0     # ... and its excess is this many standard errors from zero
+DETERMINED = 6.0     # ... and its excess is this many standard errors from zero (the n story
+                     # dashpots of a weakly identified general C: on blind seed 24798 the claims
+                     # at 3.2-5.3 SE were wrong 3 of 3, the right one stood at 39 SE)
 MAX_UNEXPLAINED = 0.3  # a C this far from M + story patterns is not decomposed into dampers
 DOMINANT = 0.6       # ... and it supplies over 60 % of some mode's damping: it dominates (randomly
                      # non-proportional damping, 40 % of C as story dashpots of random share, reaches
