@@ -40,8 +40,8 @@ from .problem import SolverConfig, Target, UpdatingProblem
 from .provenance import provenance
 from .search import SearchConfig, scatter_search
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
-                                 effect_terms, quasi_covariance, scaled_delta_bic, significance,
-                                 tied)
+                                 effect_terms, evidence, held_out_excess, quasi_covariance,
+                                 scaled_delta_bic, significance, tied)
 
 __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
            "HELD_OUT_GAIN"]
@@ -335,11 +335,46 @@ def _refit_all(jobs, search):
     return [out[i] for i in range(len(jobs))]
 
 
-def _decide(results, ref_chi, ref_held, nu, n_fit):
+REPOLISH_MIN = 1.0     # chi-square a re-solved current model must gain to replace it
+MAX_REPOLISH = 2       # re-solves of the current model per diagnosis (each repeats a round)
+
+
+def _repolish(state, results, case, held, sig_held):
+    """The current model re-solved from the refits' optima with their candidate removed.
+
+    A refit starts from the current optimum with one more parameter, which opens a
+    path out of a local minimum; when it then lands far below, the current model
+    alone may reach that basin too (blind case 886679/56: a baseline stuck at
+    reduced chi-square 642, and candidates at their null values "explained" it by
+    dBIC -154,000). Returns the new state when a re-solve gains more than
+    REPOLISH_MIN in chi-square, else None.
+    """
+    pr = state["problem"]
+    nz = pr.params.n_z
+    best = None
+    for r in sorted(results, key=lambda r: r["chi2"])[:3]:
+        if r["chi2"] >= state["chi"] - REPOLISH_MIN:
+            break
+        res = pr.solve(np.asarray(r["z"])[:nz])
+        if np.isfinite(res.f) and 2 * res.f < state["chi"] - REPOLISH_MIN \
+                and (best is None or res.f < best.f):
+            best = res
+    if best is None:
+        return None
+    rh = _normalised(pr, best.z, case, held, sig_held)
+    return {"current": state["current"], "z": best.z, "chi": 2 * best.f,
+            "held": float(np.mean(rh ** 2)), "problem": pr, "result": best}
+
+
+def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
     """Evidence of every refitted candidate of one round, on a common quasi-likelihood scale.
 
     phi is the dispersion left by the best-fitting candidate (the misfit no
-    candidate explains); chi-square differences are divided by it. A candidate is
+    candidate explains); chi-square differences are divided by it. The held-out
+    points (n_held residuals, never fitted) add their own evidence: each
+    candidate's held-out chi-square above the best one's, divided by the held-out
+    dispersion (nlp.diagnosis.evidence.held_out_excess). Candidates are ranked,
+    and told apart, by the sum (``evidence``). A candidate is
     accepted when it is not on a bound, its effect is clearly non-zero (|value| >
     3 quasi-likelihood standard errors, every error below its value), and either
     the scaled BIC drops by BIC_ACCEPT with a held-out gain, or the held-out
@@ -360,6 +395,7 @@ def _decide(results, ref_chi, ref_held, nu, n_fit):
         r["accepted"] = not r["at_bound"] and ok and (
             (r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
             or (r["delta_bic"] <= 0 and r["held_out"] <= 0.5 * ref_held))
+    held_out_excess(results, n_held)
     return phi
 
 
@@ -593,7 +629,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     found, alternatives, absorbed, ties, tried, indistinct = [], [], [], [], [], []
     phis, unconfirmed, consistency = [], [], []
     others = _setup_others(cfg)
-    for rnd in range(max_findings):
+    rnd, repolished = 0, 0
+    while rnd < max_findings:
         if _adequate(state["chi"], nu, state["held"]) and rnd > 0:
             break
         pairs = [(e, _score(case, target, state["current"], state["z"], e))
@@ -605,15 +642,32 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         jobs = _to_refit(scored, top)
         results = _refit_all([(case, target, state["current"], state["z"], e, sc, n_fit, held,
                                sig_held) for sc, e in jobs], cfg.search)
+        better = _repolish(state, results, case, held, sig_held) \
+            if repolished < MAX_REPOLISH else None
+        if better is not None:
+            # the current optimum was a local minimum: judge the candidates against the
+            # better one, so a refit that merely finds the current model's own minimum
+            # is not taken for evidence
+            log(f"  [{rnd + 1}] the current model re-solved from a candidate's optimum reaches "
+                f"chi-square {better['chi']:.1f} (was {state['chi']:.1f}): repeating the round")
+            repolished += 1
+            if not state["current"]:
+                b_res, chi_b, held_b = better.pop("result"), better["chi"], better["held"]
+                b_conv = bool(b_res.success)
+                cells, _, _ = _residual_map(case, base, b_res.z, fit, held, sig_fit, sig_held)
+            better.pop("result", None)
+            state = better
+            continue
         k_cur = state["problem"].params.n_z - base.params.n_z
-        phis.append(_decide(results, state["chi"], state["held"], nu - k_cur, n_fit))
+        phis.append(_decide(results, state["chi"], state["held"], nu - k_cur, n_fit,
+                            n_held=held.size * len(case.channels)))
         for r in results:
             log(f"  [{rnd + 1}] {r['physics']} {r['location']}: score {r['score']:.1f}, "
                 f"dBIC {r['delta_bic']:.1f} (phi {r['phi']:.2f}), held-out {r['held_out']:.2f}"
                 f"{' (accepted)' if r['accepted'] else ''}"
                 f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
         tried += results
-        accepted = sorted([r for r in results if r["accepted"]], key=lambda r: r["delta_bic"])
+        accepted = sorted([r for r in results if r["accepted"]], key=evidence)
         if others and accepted:
             accepted, rejected, recs = _hold_on_others(others, state, accepted, log)
             unconfirmed += rejected
@@ -635,6 +689,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
         alternatives += accepted[1:]
         state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
+        rnd += 1
     if len(found) > 1:
         found, state = _prune(case, target, found, state, n_fit, held, sig_held, log)
     off_peak = (chi_b / nu < 1.5 + 3 * math.sqrt(2 / nu)   # windows explained, shoulders not
@@ -936,7 +991,8 @@ def _public(r):
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
                      "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
                      "raw_delta_chi2": r.get("raw_delta_chi2"),
-                     "significant": r.get("significant", True)}
+                     "significant": r.get("significant", True),
+                     "held_out_excess": r.get("held_excess")}
     d["statement"] = _statement(r)
     return d
 
@@ -998,7 +1054,7 @@ def _verdict(cfg, case, out, log, ctx):
             "The model is inadequate here, and these candidates cannot be told apart: "
             + "; ".join(f"{_where(r)} (dBIC {r['delta_bic']:.1f})" for r in indistinct)
             + f" (within {BIC_TIE:g} of each other in BIC with the chi-square divided by the "
-            f"remaining misfit, phi = {phi:.1f})."
+            f"remaining misfit, phi = {phi:.1f}, and alike on the held-out points)."
             + (" They are candidates for what remains after the findings above." if found else ""))
     for r in unconfirmed:
         recs = [c for c in consistency if c["physics"] == r["physics"]

@@ -14,8 +14,11 @@ from scipy.linalg import eigh
 
 from conftest import shear_K
 from nlp.config import load_case
-from nlp.diagnose import _classify, _decide, diagnose
-from nlp.diagnosis.evidence import BIC_TIE, dispersion, scaled_delta_bic, tied
+from nlp.case import assemble
+from nlp.diagnose import (_classify, _decide, _normalised, _problem, _repolish, _target,
+                          _windows, diagnose, noise_sigma)
+from nlp.diagnosis.evidence import (BIC_TIE, dispersion, evidence, held_out_excess,
+                                    scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
 
 F = np.arange(0.5, 16.0, 0.02)
@@ -191,6 +194,55 @@ def test_five_different_candidates_within_the_window_are_ambiguous():
                      inside=[], adequate=False) == "ambiguous"
     # without the quasi-likelihood scale the same chi-squares would be 50 apart: one winner
     assert tied(acc, window=BIC_TIE / phi) == []
+
+
+def test_held_out_points_tell_apart_candidates_that_fit_the_windows_alike():
+    """Two candidates 2 apart in scaled BIC, held-out mean 1.3 against 4.0 on 2,000 held-out
+    residuals: the held-out data separate them by (4.0 - 1.3) x 2000 / 1.3 in chi-square."""
+    a = dict(_result("secondary_oscillator", {"floor": 1}, 1000.0), held_out=1.3)
+    b = dict(_result("added_mass", {"floor": 1}, 1002.0), held_out=4.0)
+    _decide([b, a], 4000.0, 10.0, 190, 200, n_held=2000)
+    assert a["held_excess"] == 0.0
+    assert b["held_excess"] == pytest.approx((4.0 - 1.3) * 2000 / 1.3)
+    acc = sorted([b, a], key=evidence)
+    assert acc[0] is a and tied(acc) == []
+    # alike on the held-out points too: they cannot be told apart
+    b["held_out"] = 1.3
+    held_out_excess([a, b], 2000)
+    assert tied(sorted([a, b], key=evidence)) == [b]
+
+
+def test_current_model_re_solved_from_a_refit_leaves_a_local_minimum(tmp_path, rng):
+    """A current model held away from its optimum (the start point, where a search stuck in a
+    local minimum would leave it) and a refit whose baseline part lies near the optimum:
+    the re-solve starts there and reaches the optimum of a solve from the true parameters;
+    nothing changes when the current model is already there."""
+    m, k = np.array([5.0, 4.0, 3.0]), np.array([4000.0, 3500.0, 3000.0])
+    M, C, K = _frame(m, k)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = _case(tmp_path, 1.15 * m, 0.8 * k, [("frf.npz", 1)],
+                {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.5, 1.0]},
+                {"model": "rayleigh", "zeta": 0.02})
+    case = assemble(cfg)
+    fit = _windows(cfg, case, 1)
+    held = np.setdiff1d(_windows(cfg, case, 3), fit)
+    pr = _problem(case, _target(case, fit, noise_sigma(case, fit)), optimize=False)
+    truth = pr.params.z_from_theta(np.concatenate([m / (1.15 * m) - 1, k / (0.8 * k) - 1,
+                                                   pr.theta(pr.z0)[6:]]))
+    ref = pr.solve(truth)
+    assert ref.success
+    sig_h = noise_sigma(case, held)
+    stuck = {"current": [], "z": pr.z0, "chi": 2 * float(pr.objective(pr.z0)), "problem": pr,
+             "held": float(np.mean(_normalised(pr, pr.z0, case, held, sig_h) ** 2))}
+    refit = {"z": np.concatenate([truth * 1.01, [0.0]]), "chi2": 2 * ref.f - 5.0}
+    better = _repolish(stuck, [refit], case, held, sig_h)
+    assert better is not None and better["chi"] == pytest.approx(2 * ref.f, rel=1e-6)
+    # started from the refit's optimum without its candidate (this frame has one basin, so
+    # the start is what shows the mechanism)
+    assert np.allclose(better["result"].z0, np.clip(truth * 1.01, *pr.bounds))
+    assert better["chi"] / (pr.n_used - pr.params.n_z) < 1.5   # inside the model class
+    at_opt = dict(stuck, z=ref.z, chi=2 * ref.f)
+    assert _repolish(at_opt, [dict(refit, chi2=2 * ref.f - 0.5)], case, held, sig_h) is None
 
 
 def test_effect_within_three_standard_errors_is_not_accepted():
