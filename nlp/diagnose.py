@@ -302,7 +302,18 @@ def _refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
-            "at_bound": at_bound, "z": res.z, "problem": pr}
+            "at_bound": at_bound, "z": res.z, "problem": pr,
+            "split": _split(case, pr, res.z) if e.family == "secondary_oscillator" else None}
+
+
+def _split(case, pr, z):
+    """How far the fitted appendage's mode stands from the nearest structural mode, against
+    what the data can resolve (nlp/diagnosis/resolution.py)."""
+    from .diagnosis.resolution import appendage_split, estimate_resolution
+    sep, bw, fa, fb = appendage_split(*pr.system_matrices(z))
+    res_hz = estimate_resolution(case.f, case.config.data.window)
+    return {"separation_hz": sep, "bandwidth_hz": bw, "resolution_hz": res_hz,
+            "appendage_mode_hz": fa, "nearest_mode_hz": fb, "resolved": sep > max(bw, res_hz)}
 
 
 def _refit_one(jobs, i):
@@ -378,7 +389,8 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
     accepted when it is not on a bound, its effect is clearly non-zero (|value| >
     3 quasi-likelihood standard errors, every error below its value), and either
     the scaled BIC drops by BIC_ACCEPT with a held-out gain, or the held-out
-    error halves while the fit does not get worse.
+    error halves while the fit does not get worse. An appendage must also make a
+    resonance of its own that the data resolve (nlp/diagnosis/resolution.py).
     """
     if not results:
         return 1.0
@@ -391,6 +403,14 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
         r["delta_bic"] = scaled_delta_bic(r["chi2"], ref_chi, k, n_fit, phi)
         ok, why = significance(r["physics"], names, [r["parameters"][n] for n in names],
                                [r["uncertainty"][n] for n in names])
+        sp = r.get("split")
+        if ok and sp and not sp["resolved"]:
+            ok, why = False, (f"its mode at {sp['appendage_mode_hz']:.3f} Hz is "
+                              f"{sp['separation_hz']:.3f} Hz from the mode at "
+                              f"{sp['nearest_mode_hz']:.3f} Hz, within their half-power "
+                              f"bandwidth ({sp['bandwidth_hz']:.3f} Hz) or the estimate's "
+                              f"resolution ({sp['resolution_hz']:.3f} Hz): one reshaped peak, "
+                              "not a separate resonance")
         r["significant"], r["why_not"] = ok, why
         r["accepted"] = not r["at_bound"] and ok and (
             (r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
@@ -993,6 +1013,8 @@ def _public(r):
                      "raw_delta_chi2": r.get("raw_delta_chi2"),
                      "significant": r.get("significant", True),
                      "held_out_excess": r.get("held_excess")}
+    if r.get("split"):
+        d["evidence"]["resolution"] = r["split"]
     d["statement"] = _statement(r)
     return d
 

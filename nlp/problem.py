@@ -207,6 +207,7 @@ class UpdatingProblem:
         M, K, C, system = self._model_matrices(z)
         self.matrices_fn = ca.Function("matrices", [z], [M, K, C], ["z"], ["M", "K", "C"])
         Ma, Ka, Ca, Kh = (system[k] for k in ("M", "K", "C", "Kh"))
+        self.system_fn = ca.Function("system", [z], [Ma, Ka, Ca], ["z"], ["M", "K", "C"])
         if self.target.excitation == "ground":
             r = ca.DM.ones(Ma.shape[0]) if self.target.ground_r is None else \
                 ca.vertcat(ca.DM(self.target.ground_r), ca.DM.zeros(Ma.shape[0] - self.model.n))
@@ -427,7 +428,7 @@ class UpdatingProblem:
         self._screen_solver = self._screen_def = None  # already stops at 1e-5 (above)
         self.ng = ng
         self._batch = {}
-        self.matrices_fn = None
+        self.matrices_fn = self.system_fn = None
 
     def describe(self):
         """One line: which FRF backend runs and how."""
@@ -498,6 +499,14 @@ class UpdatingProblem:
                          for A in (M, K, C))
         M, K, C = self.matrices_fn(np.asarray(z, float))
         return np.asarray(M), np.asarray(K), np.asarray(C)
+
+    def system_matrices(self, z):
+        """Numeric M, K, C of the whole system at z, with the DOFs the added physics appends
+        (an appendage's, a flexible base's) after the model's; the model's own M, K, C
+        (:meth:`matrices`) when the FRF backend is numeric."""
+        if self.system_fn is None:
+            return self.matrices(z)
+        return tuple(np.asarray(A) for A in self.system_fn(np.asarray(z, float)))
 
     def theta(self, z):
         return self.params.theta(np.asarray(z, float))

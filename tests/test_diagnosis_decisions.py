@@ -306,3 +306,59 @@ def test_modal_share_of_a_story_dashpot():
     by_hand = ex[1] * drift ** 2 / np.array([phi[:, r] @ C2 @ phi[:, r] for r in range(3)])
     np.testing.assert_allclose(modal_share(M, K, C2, ex)[1], by_hand, rtol=1e-10)
     assert by_hand.max() > DOMINANT
+
+
+def test_appendage_split_of_a_tuned_absorber_and_what_resolves_it():
+    """An undamped absorber of mass ratio mu tuned to a 1-DOF main mass splits its mode into
+    (w/w0)^2 = 1 + mu/2 +- sqrt(mu + mu^2/4) (Den Hartog). A tiny one (mu = 0.0004) splits
+    by less than the half-power bandwidth of 2 % damping: one reshaped peak; mu = 0.05 splits
+    by about f sqrt(mu), far wider: a resonance of its own."""
+    from nlp.diagnosis.resolution import appendage_split, estimate_resolution
+    m0, f0 = 10.0, 3.0
+    k0 = m0 * (2 * np.pi * f0) ** 2
+    for mu, resolved in ((0.0004, False), (0.05, True)):
+        ms = mu * m0
+        ks = ms * (2 * np.pi * f0) ** 2
+        M = np.diag([m0, ms])
+        K = np.array([[k0 + ks, -ks], [-ks, ks]])
+        exact = f0 * np.sqrt(1 + mu / 2 + np.array([-1, 1]) * np.sqrt(mu + mu ** 2 / 4))
+        sep, bw, fa, fb = appendage_split(M, K, 1e-9 * K)
+        assert sep == pytest.approx(exact[1] - exact[0], rel=1e-6)
+        assert sorted([fa, fb]) == pytest.approx(exact, rel=1e-6)
+        # 2 % damping of the main mass and the absorber
+        C = np.array([[2 * 0.02 * np.sqrt(k0 * m0), 0.0], [0.0, 0.0]]) \
+            + 2 * 0.02 * np.sqrt(ks * ms) * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        sep, bw, _, _ = appendage_split(M, K, C)
+        assert (sep > bw) == resolved
+    # a Hann estimate resolves 1.5 bins (its equivalent noise bandwidth), a rectangular one 1
+    f = np.arange(0.0, 50.0, 0.025)
+    assert estimate_resolution(f, "hann") == pytest.approx(1.5 * 0.025, rel=1e-3)
+    assert estimate_resolution(f, "boxcar") == pytest.approx(0.025)
+
+
+class _DampedFrame:
+    """Just what damper_check asks of a problem: M, K, C at z = (a0, c_1..c_n), bounds."""
+
+    def __init__(self, m, k):
+        self.M, self.K = np.diag(m), shear_K(k)
+        self.bounds = (np.zeros(len(k) + 1), np.full(len(k) + 1, np.inf))
+
+    def matrices(self, z):
+        C = z[0] * self.M + sum(c * P for c, P in zip(z[1:], story_patterns(len(z) - 1)))
+        return self.M, self.K, C
+
+
+def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
+    """Story 2 carries a dashpot far beyond the others' share. With stories 1 and 3 damped
+    it is a concentrated damper; with story 1's dashpot at zero the others' share is not
+    determined (the non-negative decomposition is on its bound) and nothing is claimed."""
+    from nlp.diagnosis.priors import damper_check
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    pr = _DampedFrame(m, k)
+    cov = np.diag(np.full(4, 1e-6))
+    z = np.array([0.1, 3.0, 15.0, 2.6])          # c/k: 1e-3, 5.4e-3, 1e-3
+    info, flagged = damper_check(pr, z, cov)
+    assert [d["story"] for d in flagged] == [2] and info["pinned_stories"] == []
+    z_pinned = np.array([0.1, 0.0, 15.0, 2.6])
+    info, flagged = damper_check(pr, z_pinned, cov)
+    assert flagged == [] and info["pinned_stories"] == [1]
