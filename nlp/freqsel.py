@@ -75,6 +75,17 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     -------
     ndarray of int
         Indices into ``f`` of the peaks, sorted by frequency.
+
+    Notes
+    -----
+    A peak is kept when a strict majority of the channels, or the channel
+    sum, peak there: a bump between two anti-resonances of one channel is not
+    a resonance. For complex ``H`` a peak of fewer channels is kept too when
+    the phase of a channel peaking there lags by at least 45 deg across the
+    peak's half-power band: a pole lags by 90 deg over that band, whereas
+    between two zeros the phase does not fall, so a mode near the nodes of
+    the other channels is not lost. Real ``H`` (magnitudes only) uses the
+    majority rule alone.
     """
     from .noise import local_scatter
 
@@ -134,6 +145,8 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
             clusters.append([i, [(i, p, c)]])
     n_ch = mags.shape[0]
     need = n_ch // 2 + 1  # a strict majority of the channels
+    Hw = np.atleast_2d(H)[:, sel]
+    has_phase = np.iscomplexobj(Hw) and np.any(Hw.imag != 0)
     idx, prom = [], []
     for _, cl in clusters:
         support = {c for _, _, c in cl}
@@ -143,10 +156,39 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
             best = max(summed or cl, key=lambda t: t[1])
             idx.append(best[0])
             prom.append(best[1] + (1e6 if summed else 0.0))
+        elif has_phase:
+            # a mode near the nodes of the other channels: the phase lag of a
+            # pole tells it from a bump between two zeros, which does not lag
+            poles = [t for t in cl if _phase_lags(Hw[t[2]], mags[t[2]], t[0])]
+            if poles:
+                best = max(poles, key=lambda t: t[1])
+                idx.append(best[0])
+                prom.append(best[1])
     idx, prom = np.array(idx, dtype=int), np.array(prom)
     if n_peaks is not None and idx.size > n_peaks:
         idx = idx[np.argsort(prom)[::-1][: int(n_peaks)]]
     return np.unique(sel[idx])
+
+
+def _phase_lags(h, mag, i, max_bins=10):
+    """Whether the phase of h falls by >= pi/4 across the half-power band of the peak at i.
+
+    The half-width k [bins] is the nearer -3 dB crossing of ``mag`` (at most
+    max_bins; 2 if neither side falls that far before the grid ends), so the
+    test spans the band where a pole turns the phase by about 90 deg.
+    """
+    level = mag[i] / np.sqrt(2.0)
+    sides = []
+    for step in (-1, 1):
+        j = i + step
+        while 0 <= j < mag.size and mag[j] >= level:
+            j += step
+        if 0 <= j < mag.size:
+            sides.append(abs(j - i))
+    k = min(min(sides), max_bins) if sides else 2
+    lo, hi = max(i - k, 0), min(i + k, h.size - 1)
+    phase = np.unwrap(np.angle(h[lo:hi + 1]))
+    return phase[-1] - phase[0] <= -np.pi / 4
 
 
 def _half_widths(f, idx, rel=0.05, min_bins=5):

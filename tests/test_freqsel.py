@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from scipy import linalg
+from scipy import linalg, signal
 
 from nlp.errors import InputError
 from nlp.freqsel import find_peaks, half_power_band, plot_selection, select_frequencies
@@ -125,3 +125,69 @@ def test_plot_selection_writes_png(frf, tmp_path):
     out = plot_selection(f, H, idx, tmp_path / "sel.png", channel_names=["1", "2", "3"])
     assert (tmp_path / "sel.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert out == tmp_path / "sel.png"
+
+
+def _shear_frame_receptance(m, k, zeta, f, floor):
+    """Receptances of all floors of a shear frame to a force at `floor`, Rayleigh damping
+    zeta at the first and last modes; also the undamped natural frequencies [Hz]."""
+    M = np.diag(m)
+    K = np.diag(k + np.append(k[1:], 0.0)) - np.diag(k[1:], 1) - np.diag(k[1:], -1)
+    w = np.sqrt(linalg.eigh(K, M, eigvals_only=True))
+    beta = 2 * zeta / (w[0] + w[-1])
+    C = w[0] * w[-1] * beta * M + beta * K
+    b = np.eye(len(m))[floor]
+    H = np.array([np.linalg.solve(K - wi**2 * M + 1j * wi * C, b) for wi in 2 * np.pi * f]).T
+    return H, w / (2 * np.pi)
+
+
+def _noisy(H, sd, seed):
+    """H times exp(sd (a + j b)), a, b standard normal: ln|H| and the phase scatter by sd."""
+    rng = np.random.default_rng(seed)
+    return H * np.exp(sd * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)))
+
+
+def _peaks_6db_near(mag, f, f0):
+    """Whether mag has a >= 6 dB prominent local maximum within 2 % of f0."""
+    idx, _ = signal.find_peaks(20 * np.log10(mag), prominence=6.0)
+    return bool(np.any(np.abs(f[idx] - f0) <= 0.02 * f0))
+
+
+def test_mode_of_one_channel_kept_by_its_phase_lag():
+    # heavy middle floor: mode 2 moves mostly the top floor; force at floor 1
+    f = np.arange(0.5, 15, 0.02)
+    H, fn = _shear_frame_receptance(np.array([0.7, 3.0, 0.6]), np.array([3000.0, 1000.0, 2250.0]),
+                                    0.015, f, floor=0)
+    # as built: mode 2 is a clear peak of the top floor only, not of the others nor the sum
+    curves = np.vstack([np.abs(H), np.abs(H).sum(axis=0)])
+    assert [_peaks_6db_near(c, f, fn[1]) for c in curves] == [False, False, True, False]
+    Hn, sd = _noisy(H, 0.005, seed=3), np.full(H.shape, 0.005)
+    # one channel is no majority, but its phase lags through the peak: a pole
+    found = f[find_peaks(f, Hn, sigma=sd)]
+    assert found.size == 3
+    np.testing.assert_array_less(np.abs(found - fn) / fn, 0.02)
+    # magnitudes alone cannot tell it from a bump between two zeros: majority rule only
+    found = f[find_peaks(f, np.abs(Hn), sigma=sd)]
+    assert found.size == 2
+    np.testing.assert_array_less(np.abs(found - fn[[0, 2]]) / fn[[0, 2]], 0.02)
+
+
+def test_bump_between_two_zeros_is_no_peak():
+    # all channels share a mode at 11 Hz; channel 1 also has lightly damped zeros at
+    # 4 and 6 Hz, so its magnitude has a local maximum near 5 Hz without a pole there
+    f = np.arange(0.5, 15, 0.02)
+    w = 2 * np.pi * f
+
+    def factor(fz, zeta):
+        wz = 2 * np.pi * fz
+        return (wz**2 - w**2 + 2j * zeta * wz * w) / wz**2
+
+    pole = 1 / factor(11.0, 0.02)
+    zeros = factor(4.0, 0.01) * factor(6.0, 0.01)
+    sd = np.full((3, f.size), 0.005)
+    H = _noisy(np.vstack([zeros * pole, 2 * pole, 0.5 * pole]), 0.005, seed=4)
+    found = f[find_peaks(f, H, sigma=sd)]
+    assert found.size == 1 and abs(found[0] - 11.0) <= 0.02 * 11.0
+    # the bump is a candidate: as a majority of channels it is reported (phase or not)
+    H = _noisy(np.vstack([zeros * pole, 2 * zeros * pole, 0.5 * pole]), 0.005, seed=4)
+    found = f[find_peaks(f, H, sigma=sd)]
+    assert found.size == 2 and abs(found[0] - 5.0) <= 0.1 * 5.0
