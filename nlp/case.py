@@ -25,7 +25,7 @@ from .parameters import Parameter, ParameterSet
 from .frf import BASE_DOF
 from .problem import Channel, SolverConfig, Target, UpdatingProblem
 from .estimate import estimate_frf
-from .noise import noise_model
+from .noise import estimator_kernel, noise_model
 from .readers import read_frf, read_frf_coherence, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem", "detection_noise"]
@@ -507,10 +507,15 @@ def assemble(cfg, channels=None, data_file=None):
         H = H * gains[:, None]
     if coherence is not None:
         coherence = coherence[rows]
+    # the model sees the estimate's window where the FRF is a windowed average; the
+    # numeric (sparse, reduced) backends do not carry it, so their cases keep the
+    # noise model's resolution bias instead
+    kernel = estimator_kernel(cfg, f, records) \
+        if choose_backend(cfg.model.frf_backend, model.n) == "dense" else None
     noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
                                         records=records, channels=tuple(channels),
-                                        n_averages=n_avg))
-    idx = _select(cfg, f, H, channels, ex.type, coherence, noise.sigma_ln)
+                                        n_averages=n_avg, kernel=kernel))
+    idx = _select(cfg, f, H, channels, ex.type, coherence, noise.detect)
     # damping after the selection: modal-basis damping takes the band's modes
     damping = _damping(cfg, model, float(f[idx].max()))
     params = _parameters(cfg, model, damping)
@@ -520,7 +525,7 @@ def assemble(cfg, channels=None, data_file=None):
     weights = weights[:, None] * np.ones(idx.size)
     target = Target(omega=2 * np.pi * f[idx], H=H[:, idx], weight=weights,
                     channels=tuple(channels), excitation=ex.type, force_dof=force_dof,
-                    ground_r=ground_r)
+                    ground_r=ground_r, kernel=kernel)
     if _groups_cover(model) and scale_null_space(params, damping, ex.type,
                                                  cfg.parameters.total_mass):
         raise InputError(cfg.path, "parameters",

@@ -74,7 +74,8 @@ def noise_sigma(case, idx):
 def _target(case, idx, sigma):
     tg = case.target
     return Target(omega=2 * np.pi * case.f[idx], H=case.H[:, idx], weight=1.0 / sigma,
-                  channels=tg.channels, excitation=tg.excitation, force_dof=tg.force_dof)
+                  channels=tg.channels, excitation=tg.excitation, force_dof=tg.force_dof,
+                  ground_r=tg.ground_r, kernel=tg.kernel)
 
 
 def _problem(case, target, enrichments=(), values=None, compile=True, optimize=True):
@@ -511,7 +512,7 @@ def _nonlinearity(cfg, log):
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
     wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
-                                  c.noise.sigma_ln), int)
+                                  c.noise.detect), int)
     held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
     sig = noise_sigma(c, held)
     before = float(np.mean(_normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
@@ -601,7 +602,7 @@ def _windows(cfg, case, mult):
         return case.selected
     c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
     idx = np.asarray(_half_power(c, case.f, case.H, case.channels, case.target.excitation,
-                                 case.coherence, case.noise.sigma_ln), int)
+                                 case.coherence, case.noise.detect), int)
     return idx[case.f[idx] > 0]
 
 
@@ -946,7 +947,7 @@ def _whole_band(case, base, zb, improved, zi, fit):
     m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there
     if getattr(case, "noise", None) is not None:
         # nor where the route's own noise model says the estimate is noise
-        m = m & (case.noise.sigma_ln[:, idx] < MAX_SCATTER)
+        m = m & (case.noise.detect[:, idx] < MAX_SCATTER)
     fit_local = np.nonzero(np.isin(idx, fit))[0]
     maps = {}
     for key, pr, z in (("before", base, zb), ("after", improved, zi)):

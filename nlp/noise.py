@@ -46,7 +46,8 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
-           "var_ln_transient", "kernel_moment", "resolution_bias", "rest_mask",
+           "var_ln_transient", "kernel_moment", "smoothing_taps", "estimator_kernel",
+           "resolution_bias", "rest_mask",
            "rest_noise_psd", "local_scatter", "second_difference_factor", "VAR_LN_MAX"]
 
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
@@ -68,12 +69,24 @@ class NoiseModel:
         ``"transient"``, ``"welch"``, ``"frf_coherence"`` or ``"scatter"``.
     n_averages : float
         Effective number of independent averages (1 for one segment).
+    sigma_detect : ndarray, shape (n_ch, n_f), optional
+        What decides whether something stands out of the noise (peaks, the whole-band
+        map): ``sigma_ln`` plus the estimate's resolution bias when the model carries
+        the window's kernel instead (:func:`estimator_kernel`). The bias, taken from
+        second differences of the estimate, is also large where the estimate is
+        noise, which keeps noise bumps out of the peaks. None: ``sigma_ln``.
     """
 
     sigma_ln: np.ndarray
     sigma_phase: np.ndarray
     route: str
     n_averages: float = 1.0
+    sigma_detect: np.ndarray = None
+
+    @property
+    def detect(self):
+        """Standard deviation of ln|H| for detection (see ``sigma_detect``)."""
+        return self.sigma_ln if self.sigma_detect is None else self.sigma_detect
 
 
 # ---------------------------------------------------------------- averaging
@@ -126,6 +139,47 @@ def kernel_moment(window, nperseg):
     w = signal.get_window(window, int(nperseg))
     dw = np.diff(np.concatenate([[0.0], w, [0.0]]))
     return nperseg ** 2 * float(dw @ dw) / (4 * math.pi ** 2 * float(w @ w))
+
+
+def smoothing_taps(window, nperseg=1024):
+    """The averaged estimate's view of an FRF as three taps: (h [bins], a).
+
+    A windowed average (Welch, an analyzer's FRF) estimates the true FRF smoothed by
+    the window's power kernel |W(nu)|^2 (flat input spectrum). The three taps
+    a H(f - h df) + (1 - 2a) H(f) + a H(f + h df) have the kernel's second and
+    fourth moments (h^2 = m4 / m2, a = m2^2 / (2 m4)), so they carry its effect on a
+    peak to fifth order; Hann: h = 1 bin, a = 1/6.
+    """
+    w = signal.get_window(window, int(nperseg))
+    L, P = w.size, 16
+    K = np.abs(np.fft.fft(w, L * P)) ** 2
+    K /= K.sum()
+    nu = np.fft.fftfreq(L * P, d=1.0 / L)
+    m2, m4 = float(nu ** 2 @ K), float(nu ** 4 @ K)
+    return math.sqrt(m4 / m2), m2 ** 2 / (2 * m4)
+
+
+def estimator_kernel(cfg, f, records=None):
+    """Taps (h [rad/s], a) of the case's FRF estimate (:func:`smoothing_taps`), or None.
+
+    A Welch average of the case's own time histories smooths the FRF by its window,
+    which is then known exactly. A whole transient in one segment (``nperseg: all``)
+    is not smoothed. A stored FRF file's window is an assumption (``data.window``
+    defaults to Hann, and simulated or stepped-sine files are not windowed), so its
+    resolution bias stays an error of the noise model; so does that of windows
+    without finite kernel moments (rectangular).
+    """
+    d = cfg.data
+    f = np.asarray(f, float)
+    if (records is None or "__input__" not in records.data or d.nperseg == "all"
+            or d.window in ("boxcar", "rectangular") or f.size < 5):
+        return None
+    df = np.diff(f)
+    if np.max(np.abs(df - df.mean())) > 1e-6 * abs(df.mean()):
+        return None
+    nperseg = d.nperseg or int(2 ** np.floor(np.log2(max(records.t.size // 8, 1))))
+    h, a = smoothing_taps(d.window, nperseg)
+    return 2 * math.pi * h * float(df.mean()), a
 
 
 def resolution_bias(H, m2):
@@ -352,10 +406,11 @@ def _from_records(case):
         return NoiseModel(s, s.copy(), "transient", 1.0)
     n_eff = n_total * n_eff / n_d
     var = var_ln_welch(case.coherence, n_eff)
-    if d.nperseg != "all":
-        # the resolution bias at sharp peaks is an error of the estimate as well
-        # (a whole transient per segment has no leakage)
-        var = var + resolution_bias(case.H, kernel_moment(d.window, nperseg)) ** 2
+    # the resolution bias at sharp peaks is an error of the estimate as well, unless the
+    # model sees it (Target.kernel); a whole transient per segment has no leakage
+    bias2 = 0.0 if d.nperseg == "all" else \
+        resolution_bias(case.H, kernel_moment(d.window, nperseg)) ** 2
+    extra, cap = 0.0, np.inf
     if s_n is not None and d.estimator == "H1":
         # H1 is biased low by ln(1 + S_nx / S_uu) (input noise); count it as error
         kw = dict(fs=rec.fs, window=d.window, nperseg=nperseg, noverlap=noverlap)
@@ -363,9 +418,16 @@ def _from_records(case):
         s_xx = np.interp(case.f, f_w, s_xx)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.clip(s_n[0] / np.maximum(s_xx - s_n[0], 1e-300), 0, None)
-        var = np.minimum(var + np.log1p(ratio)[None, :] ** 2, VAR_LN_MAX)
-    s = np.maximum(np.sqrt(var), _FLOOR)
-    return NoiseModel(s, s.copy(), "welch", n_eff)
+        extra, cap = np.log1p(ratio)[None, :] ** 2, VAR_LN_MAX
+
+    def sigma(v):
+        return np.maximum(np.sqrt(np.minimum(v + extra, cap)), _FLOOR)
+
+    s_det = sigma(var + bias2)
+    if not getattr(case, "kernel", None):
+        return NoiseModel(s_det, s_det.copy(), "welch", n_eff)
+    s = sigma(var)
+    return NoiseModel(s, s.copy(), "welch", n_eff, sigma_detect=s_det)
 
 
 def noise_model(case):

@@ -79,7 +79,10 @@ class Target:
     omega : (N,) rad/s; H : (n_ch, N) complex; weight : (n_ch, N), 0 where a
     channel's point is not used; excitation ``"ground"`` or ``"force"`` with
     ``force_dof`` (0-based); ``ground_r`` (n,) the influence vector of the
-    ground motion (1 on the DOFs it moves; None: every DOF, a shear frame).
+    ground motion (1 on the DOFs it moves; None: every DOF, a shear frame);
+    ``kernel`` (h [rad/s], a): the data are a windowed average, so the model is
+    compared as the estimator sees it, a H(w - h) + (1 - 2a) H(w) + a H(w + h)
+    (:func:`nlp.noise.smoothing_taps`; dense backend only).
     """
 
     omega: np.ndarray
@@ -89,6 +92,7 @@ class Target:
     excitation: str = "ground"
     force_dof: int = None
     ground_r: np.ndarray = None
+    kernel: tuple = None
 
 
 @dataclass(frozen=True)
@@ -162,6 +166,8 @@ class UpdatingProblem:
         self.enrichments, self.refs = tuple(enrichments), dict(refs or {})
         self.reduced_info = None
         self.backend = choose_backend(frf_backend, model.n, self.enrichments)
+        if target.kernel is not None and self.backend != "dense":
+            raise ValueError("Target.kernel (a windowed estimate) needs the dense FRF backend")
         self._p = self._pack_data(target)
         if self.backend == "dense":
             self._build_symbolic()
@@ -216,22 +222,36 @@ class UpdatingProblem:
             b = ca.DM.zeros(Ma.shape[0])
             b[self.target.force_dof] = 1
         kh = Kh if self.enrichments else None
-        cache = {}
+
+        def outputs(wv):
+            """Every channel's FRF (real, imaginary parts) at the frequency wv."""
+            cache, o_r, o_i = {}, [], []
+            for ch in self.target.channels:
+                if ch.output not in cache:
+                    cache[ch.output] = frf_symbolic(Ma, Ca, Ka, wv, b, ch.output, kh)
+                if ch.dof == BASE_DOF and self._base_dof is None:  # rigid base: the ground's
+                    hr = ca.SX(1.0 if ch.output == "absolute_accelerance" else 0.0)
+                    hi = ca.SX(0.0)
+                else:
+                    row = self._base_dof if ch.dof == BASE_DOF else ch.dof
+                    hr, hi = cache[ch.output][0][row], cache[ch.output][1][row]
+                for e, th_e in self._sensor.get(ch.name, ()):
+                    hr, hi = e.output(hr, hi, wv, th_e)
+                o_r.append(hr)
+                o_i.append(hi)
+            return o_r, o_i
+
+        if self.target.kernel is None:
+            out_r, out_i = outputs(w)
+        else:
+            # the windowed average's expected value: the FRF smoothed by the window's kernel
+            h, a = self.target.kernel
+            taps = [(a, outputs(w - h)), (1 - 2 * a, outputs(w)), (a, outputs(w + h))]
+            out_r = [sum(g * o[0][c] for g, o in taps) for c in range(n_ch)]
+            out_i = [sum(g * o[1][c] for g, o in taps) for c in range(n_ch)]
         res = []
-        out_r, out_i = [], []
         for c, ch in enumerate(self.target.channels):
-            if ch.output not in cache:
-                cache[ch.output] = frf_symbolic(Ma, Ca, Ka, w, b, ch.output, kh)
-            if ch.dof == BASE_DOF and self._base_dof is None:   # rigid base: moves with the ground
-                hr = ca.SX(1.0 if ch.output == "absolute_accelerance" else 0.0)
-                hi = ca.SX(0.0)
-            else:
-                row = self._base_dof if ch.dof == BASE_DOF else ch.dof
-                hr, hi = cache[ch.output][0][row], cache[ch.output][1][row]
-            for e, th_e in self._sensor.get(ch.name, ()):
-                hr, hi = e.output(hr, hi, w, th_e)
-            out_r.append(hr)
-            out_i.append(hi)
+            hr, hi = out_r[c], out_i[c]
             if self.residual == "log_magnitude":
                 res.append(wt[c] * 0.5 * (ca.log(hr**2 + hi**2) - ca.log(yr[c]**2 + yi[c]**2)))
             elif self.residual == "magnitude":

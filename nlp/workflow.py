@@ -132,7 +132,7 @@ def _modes_of(model, case):
     fc = case.config.frequencies
     det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
     sigma = None if case.noise is None else \
-        detection_noise(case.f, case.H, det, case.channels, case.noise.sigma_ln)
+        detection_noise(case.f, case.H, det, case.channels, case.noise.detect)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
                          fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase, sigma=sigma)
 
