@@ -661,6 +661,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
             absorbed = [(e, kept) for e, (_, kept) in pairs if kept < ABSORBED]
         scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
         jobs = _to_refit(scored, top)
+        if others:
+            jobs = _refits_of_others(others, state, jobs, {repr(e): sc for sc, e in scored}, top)
         results = _refit_all([(case, target, state["current"], state["z"], e, sc, n_fit, held,
                                sig_held) for sc, e in jobs], cfg.search)
         better = _repolish(state, results, case, held, sig_held) \
@@ -708,6 +710,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
                                        optimize=False)
         found.append(best)
         alternatives += accepted[1:]
+        for o in others:
+            o["at"][tuple(repr(e) for e in state["current"] + [best["enrichment"]])] = \
+                best["there"][o["label"]]
         state = {"current": state["current"] + [best["enrichment"]], "z": best["z"],
                  "chi": best["chi2"], "held": best["held_out"], "problem": best["problem"]}
         rnd += 1
@@ -728,8 +733,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
                    or not c["holds"]]
     seen = set(final)
-    unconfirmed = [r for r in unconfirmed if (r["physics"], repr(r["location"])) not in seen
-                   and not seen.add((r["physics"], repr(r["location"])))]
+    # the last test of a candidate is the one made on top of the final findings
+    unconfirmed = [r for r in reversed(unconfirmed) if (r["physics"], repr(r["location"])) not in seen
+                   and not seen.add((r["physics"], repr(r["location"])))][::-1]
     whole = _whole_band(case, base, b_res.z, state["problem"], state["z"], fit)
     ctx = {"base": base, "b_res": b_res, "found": found, "alternatives": alternatives,
            "indistinct": indistinct, "tried": tried, "cells": cells, "fit": fit, "held": held,
@@ -861,40 +867,76 @@ def _setup_others(cfg):
         c2 = assemble(c_cfg, data_file=path)
         idx = _windows(c_cfg, c2, 1)
         out.append({"label": label, "case": c2, "target": _target(c2, idx, noise_sigma(c2, idx)),
-                    "ref": {}})
+                    "at": {}})
     return out
+
+
+def _other_optimum(o, current, z_here):
+    """The current model fitted on another test, cached per model: (z, chi-square).
+
+    Started from this test's optimum and the nominal point; once a finding is
+    adopted its optimum there comes from :func:`_hold_on_others`."""
+    key = tuple(repr(e) for e in current)
+    if key not in o["at"]:
+        pr = _problem(o["case"], o["target"], current, optimize=False)
+        res = _fit(pr, [z_here, pr.z0])
+        o["at"][key] = (res.z, 2 * res.f)
+    return o["at"][key]
+
+
+def _refits_of_others(others, state, jobs, scores_here, top):
+    """Add to this round's refits the candidates the other tests rank high.
+
+    The score test is a first-order look at one test; a finding that ranks low
+    here but high on another test of the structure would otherwise never be
+    refitted here, and two tests would take different paths (Cristallo: the
+    floor-2 gain ranked 9th by score on test_2.csv, yet its BIC drop there was
+    larger than that of the finding chosen)."""
+    have = {repr(e) for _, e in jobs}
+    for o in others:
+        z_o, _ = _other_optimum(o, state["current"], state["z"])
+        scored = sorted(((_score(o["case"], o["target"], state["current"], z_o, e)[0], e)
+                         for e in candidates(o["case"]) if not _same(e, state["current"])),
+                        key=lambda t: -t[0])
+        for _, e in _to_refit(scored, top):
+            if repr(e) not in have and repr(e) in scores_here:
+                jobs.append((scores_here[repr(e)], e))
+                have.add(repr(e))
+    return jobs
 
 
 def _hold_on_others(others, state, accepted, log):
     """Keep the accepted candidates that hold on every other test of the structure.
 
     On each other test, the current model with and without the candidate is
-    fitted (starting from this test's optimum). The candidate holds there when it
-    is accepted on its own evidence (scaled BIC drop >= BIC_ACCEPT, effect > 3
-    standard errors, no error above its value) and its effect agrees with this
-    test's within 3 combined standard errors. Returns (kept, rejected, records).
+    fitted (starting from this test's optimum and from that test's own). The
+    candidate holds there when it is accepted on its own evidence (scaled BIC
+    drop >= BIC_ACCEPT, effect > 3 standard errors, no error above its value)
+    and its effect agrees with this test's within 3 combined standard errors.
+    Sets r["delta_bic_others"] (the sum of the scaled BIC changes there, which
+    :func:`evidence` adds, so every test of the structure weighs in the ranking)
+    and r["there"] (its optimum on each test). Returns (kept, rejected, records).
     """
-    key = len(state["current"])
-    for o in others:
-        if key not in o["ref"]:
-            pr = _problem(o["case"], o["target"], state["current"], optimize=False)
-            o["ref"][key] = 2 * _fit(pr, [state["z"], pr.z0]).f
+    refs = {o["label"]: _other_optimum(o, state["current"], state["z"]) for o in others}
     kept, rejected, records = [], [], []
     for r in accepted:
         names = list(r["parameters"])
         v1 = [r["parameters"][n] for n in names]
         s1 = [r["uncertainty"][n] for n in names]
-        holds_all = True
+        holds_all, d_sum, there = True, 0.0, {}
         for o in others:
+            z_o, chi_o = refs[o["label"]]
             pr2 = _problem(o["case"], o["target"], state["current"] + [r["enrichment"]],
                            optimize=False)
-            res = _fit(pr2, [r["z"], pr2.z0])
+            res = _fit(pr2, [r["z"], _at(pr2, z_o, v1), pr2.z0])
             th2, se2 = pr2.theta(res.z), _quasi_se(pr2, res.z)[0]
             ix = [pr2.params.names.index(n) for n in names]
             v2, s2 = [float(th2[i]) for i in ix], [float(se2[i]) for i in ix]
             chi2 = 2 * res.f
             phi2 = dispersion(chi2, pr2.n_used - pr2.params.n_z)
-            d2 = scaled_delta_bic(chi2, o["ref"][key], len(names), pr2.n_used, phi2)
+            d2 = scaled_delta_bic(chi2, chi_o, len(names), pr2.n_used, phi2)
+            d_sum += d2
+            there[o["label"]] = (res.z, chi2)
             sig_ok, why = significance(r["physics"], names, v2, s2)
             same = all(agree(a[1], a[2], b[1], b[2]) for a, b in
                        zip(effect_terms(r["physics"], names, v1, s1),
@@ -912,13 +954,15 @@ def _hold_on_others(others, state, accepted, log):
                 + ", ".join(f"{n} {a:.4g}+-{b:.2g}" for n, a, b in zip(names, v2, s2))
                 + (" (holds)" if holds else f" (does not hold: {reason})"))
             holds_all &= holds
+        r["delta_bic_others"], r["there"] = d_sum, there
+        r["records"] = records[-len(others):]
         if holds_all:
             kept.append(r)
         else:
             r["accepted"] = False
             r["why_not"] = "does not hold on another test of the structure"
             rejected.append(r)
-    return kept, rejected, records
+    return sorted(kept, key=evidence), rejected, records
 
 
 # --------------------------------------------------------------- whole band
@@ -1080,9 +1124,7 @@ def _verdict(cfg, case, out, log, ctx):
             f"remaining misfit, phi = {phi:.1f}, and alike on the held-out points)."
             + (" They are candidates for what remains after the findings above." if found else ""))
     for r in unconfirmed:
-        recs = [c for c in consistency if c["physics"] == r["physics"]
-                and c["location"] == r["location"] and not c["holds"]]
-        for c in recs:
+        for c in (c for c in r.get("records", []) if not c["holds"]):
             there = ", ".join(f"{n} = {v:.4g} +- {c['there_uncertainty'][n]:.2g}"
                               for n, v in c["there"].items())
             statements.append(

@@ -362,3 +362,66 @@ def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
     z_pinned = np.array([0.1, 0.0, 15.0, 2.6])
     info, flagged = damper_check(pr, z_pinned, cov)
     assert flagged == [] and info["pinned_stories"] == [1]
+
+
+def test_candidates_ranked_high_on_the_other_test_are_refitted(tmp_path):
+    """The score test of one test of the structure can rank the true effect low; the
+    other test's ranking adds it to the refits, so both tests take the same path.
+    Here this test's own list is emptied: the coupling must come from the other test,
+    whose score at its own baseline optimum ranks it first."""
+    from nlp.diagnose import _fit, _refits_of_others, _setup_others
+    rng = np.random.default_rng(5)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, _ = _frame(m, k)
+    K = _coupled(k, 900.0)
+    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    _write(tmp_path, "test2.npz", _accelerance(M, C, K, 2, rng))
+    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+                {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                {"model": "rayleigh", "zeta": 0.015})
+    case = assemble(cfg)
+    idx = _windows(cfg, case, 1)
+    pr = _problem(case, _target(case, idx, noise_sigma(case, idx)))
+    z = _fit(pr, [pr.z0]).z
+    others = _setup_others(cfg)
+    from nlp.diagnose import candidates
+    here = {repr(e): 1.0 for e in candidates(case)}
+    jobs = _refits_of_others(others, {"current": [], "z": z}, [], here, top=1)
+    assert [e.family for _, e in jobs].count("nonadjacent_coupling") == 1
+    assert any(e.family == "nonadjacent_coupling" for _, e in jobs[:1])
+    # and the other test's optimum is cached for the model it was fitted for
+    assert () in others[0]["at"]
+
+
+@pytest.mark.slow  # two whole diagnoses: 40-80 s on 2 cores
+def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
+    """The same structure (coupling 1-3, floor-2 sensor reading 12 % low) tested with the
+    shaker at floors 1 and 2: diagnosing either test, with the other as its second test,
+    names the same effects with values that agree within 3 combined standard errors.
+    (A property of the joint selection; on data this clean the old one-test path gave it
+    too. Cristallo, where it did not, is in notes.md.)"""
+    rng = np.random.default_rng(11)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, _ = _frame(m, k)
+    K = _coupled(k, 900.0)
+    gain = np.array([1.0, 0.88, 1.0])[:, None]
+    for name, floor in (("test1.npz", 1), ("test2.npz", 2)):
+        _write(tmp_path, name, gain * _accelerance(M, C, K, floor, rng))
+    params = {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}}
+    damping = {"model": "rayleigh", "zeta": 0.015}
+    out = []
+    for order in ([("test1.npz", 1), ("test2.npz", 2)], [("test2.npz", 2), ("test1.npz", 1)]):
+        folder = tmp_path / order[0][0].split(".")[0]
+        folder.mkdir()
+        for name, _ in order:
+            (folder / name).symlink_to(tmp_path / name)
+        res = diagnose(_case(folder, m, k, order, params, damping), str(folder / "out"),
+                       log=lambda *_: None)
+        out.append({(f["physics"], repr(f["location"])): f for f in res["findings"]
+                    if "uncertainty" in f})
+    assert out[0] and set(out[0]) == set(out[1])
+    for key, f in out[0].items():
+        g = out[1][key]
+        for n, v in f["parameters"].items():
+            assert abs(v - g["parameters"][n]) <= 3 * math.hypot(f["uncertainty"][n],
+                                                                  g["uncertainty"][n])

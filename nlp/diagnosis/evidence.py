@@ -106,8 +106,9 @@ def held_out_excess(results, n_held):
 
 def evidence(r):
     """Ranking of a candidate: scaled BIC change on the fitted points plus its held-out
-    excess (lower is better)."""
-    return r["delta_bic"] + r.get("held_excess", 0.0)
+    excess, plus its scaled BIC changes on the case's other tests of the structure when
+    it was fitted there (lower is better)."""
+    return r["delta_bic"] + r.get("held_excess", 0.0) + r.get("delta_bic_others", 0.0)
 
 
 def tied(accepted, window=BIC_TIE):
