@@ -364,6 +364,38 @@ def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
     assert flagged == [] and info["pinned_stories"] == [1]
 
 
+def test_damper_must_dominate_one_standard_error_below_its_estimate():
+    """Story 2's dashpot supplies just over 60 % of a mode's damping. Determined to 1 %,
+    it is a concentrated damper; with a standard error that puts its excess one error
+    lower below 60 % (the excess is linear in c_2, the share linear in the excess), it is
+    not, though it stands well over DETERMINED standard errors from zero."""
+    from nlp.diagnosis.priors import DOMINANT, _excess, damper_check, modal_share
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    pr = _DampedFrame(m, k)
+    base = np.array([0.1, 3.0, 0.0, 2.6])
+    M, K, _ = pr.matrices(base)
+
+    def share(c2):
+        C = pr.matrices(np.r_[base[:2], c2, base[3]])[2]
+        return modal_share(M, K, C, _excess(C, M, K)[0])[1].max()
+
+    # the c_2 whose share is 0.62, by bisection on the monotone share
+    lo_, hi_ = 3.0, 200.0
+    for _ in range(80):
+        mid = 0.5 * (lo_ + hi_)
+        lo_, hi_ = (mid, hi_) if share(mid) < 0.62 else (lo_, mid)
+    z = np.r_[base[:2], hi_, base[3]]
+    ex = _excess(pr.matrices(z)[2], M, K)[0][1]
+    info, flagged = damper_check(pr, z, np.diag([1e-8, 1e-8, (0.01 * ex) ** 2, 1e-8]))
+    assert [d["story"] for d in flagged] == [2]
+    assert flagged[0]["modal_share"] == pytest.approx(0.62, abs=1e-6)
+    # an error of 1/8 of the excess: 8 errors from zero, but at ex - se the share is < 0.6
+    se = ex / 8
+    assert share(hi_ - se) < DOMINANT
+    info, flagged = damper_check(pr, z, np.diag([1e-8, 1e-8, se ** 2, 1e-8]))
+    assert flagged == []
+
+
 def test_candidates_ranked_high_on_the_other_test_are_refitted(tmp_path):
     """The score test of one test of the structure can rank the true effect low; the
     other test's ranking adds it to the refits, so both tests take the same path.
