@@ -259,6 +259,28 @@ def _parameters(cfg, model, damping):
     return ParameterSet(tuple(params), n_alpha=len(model.alpha_names), n_beta=len(model.beta_names))
 
 
+def dashpot_damping(case):
+    """The case's damping as a0 M plus one dashpot per stiffness group (a story of a shear
+    frame), with its ParameterSet: (DashpotDamping, ParameterSet).
+
+    Masses and stiffnesses keep the case's bounds, fixed values and ties; settings that
+    name the case's own damping parameters are dropped. The damper test of ``diagnose``
+    refits C in this family: n + 1 damping parameters instead of the n (n + 1) / 2 of a
+    general C, so one story's dashpot is determined well enough to stand out.
+    """
+    cfg = case.config
+    pc = cfg.parameters
+    keep = set(case.model.alpha_names) | set(case.model.beta_names)
+    pc = replace(pc, **{k: {n: v for n, v in getattr(pc, k).items() if n in keep}
+                        for k in ("fixed", "initial", "bounds")},
+                 ties={t: [n for n in ns if n in keep] for t, ns in pc.ties.items()
+                       if any(n in keep for n in ns)},
+                 prior={k: v for k, v in pc.prior.items() if k in keep or k in ("masses", "stiffnesses")})
+    cfg = replace(cfg, damping=replace(cfg.damping, model="dashpots"), parameters=pc)
+    damping = _damping(cfg, case.model, float(case.f[case.selected].max()))
+    return damping, _parameters(cfg, case.model, damping)
+
+
 def _record_spec(d):
     """Channel specs for readers.read_time_histories: the input, then each channel."""
     inp = d.input

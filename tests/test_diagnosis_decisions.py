@@ -457,3 +457,58 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
         for n, v in f["parameters"].items():
             assert abs(v - g["parameters"][n]) <= 3 * math.hypot(f["uncertainty"][n],
                                                                   g["uncertainty"][n])
+
+
+def _baseline(cfg, starts=6):
+    """The case's own general-C fit on its half-power windows (a short scatter search)."""
+    from nlp.diagnose import _search
+    from nlp.search import SearchConfig
+    case = assemble(cfg)
+    fit = _windows(cfg, case, 1)
+    target = _target(case, fit, noise_sigma(case, fit))
+    pr = _problem(case, target)
+    res, _ = _search(pr, SearchConfig(starts=starts, seed=0, workers=1))
+    return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}
+
+
+@pytest.mark.slow  # a general-C baseline and one structured refit: ~20 s
+def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_path):
+    """Rayleigh damping plus story dashpots of uneven size and a damper at story 3: the
+    structured refit (C = a0 M + story dashpots) fits as well as the general C, and its
+    story dashpots stand within 4 of their own standard errors of the true ones (true
+    c_s = a1 k_s + dashpot_s, the story pattern of a stiffness-proportional C)."""
+    from nlp.diagnose import _dashpot_refit
+    rng = np.random.default_rng(5)
+    m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
+    M, C_r, K = _frame(m, k, zeta=0.01)
+    a1 = C_r[0, 1] / -k[1]                        # from the off-diagonal of a1 K
+    a0 = (C_r[0, 0] - a1 * (k[0] + k[1])) / m[0]
+    dash = np.array([1.5, 0.5, 14.0, 1.0])        # N s/m; story 3 is a damper
+    C = C_r + sum(c * P for c, P in zip(dash, story_patterns(4)))
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 2, rng))
+    cfg = _case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
+                {"model": "general", "zeta": 0.01}, channels=4)
+    case, state = _baseline(cfg)
+    s = _dashpot_refit(case, state)
+    assert s["fits"], s
+    from nlp.diagnosis.priors import decompose_damping as dec
+    Mz, _, Cz = s["problem"].matrices(s["z"])
+    a0_fit, c_fit, left = dec(Cz, Mz)
+    assert left < 1e-9                             # C is of the family by construction
+    se = np.sqrt(np.diag(s["cov"]))
+    # the decision variables behind the dashpots: c_s = a1_ref theta_s k0_s, linear
+    d = s["problem"].damping
+    sd = s["problem"].params.slices()[2]
+    T = s["problem"].params.T
+    se_theta = np.sqrt(np.clip(np.diag(T @ s["cov"] @ T.T), 0, None))[sd][1:]
+    se_c = d.a1_ref * k * se_theta
+    c_true = a1 * k + dash
+    assert np.all(np.abs(c_fit - c_true) < 4 * se_c + 0.02 * c_true), (c_fit, c_true, se_c)
+    assert se.size == s["problem"].params.n_z
+    # a general C that no story-dashpot family holds (a strong 1-3 dashpot) is refused
+    e13 = np.array([1.0, 0.0, -1.0, 0.0])
+    C13 = C_r + 30.0 * np.outer(e13, e13)
+    _write(tmp_path, "frf.npz", _accelerance(M, C13, K, 2, rng))
+    case, state = _baseline(load_case(str(tmp_path / "case.yaml")))
+    s13 = _dashpot_refit(case, state)
+    assert not s13["fits"] and s13["excess"] > s13["limit"], s13

@@ -172,6 +172,9 @@ def damper_check(problem, z, cov_z):
     # damper 4.8x the others' share at "20 standard errors")
     pinned = c <= 1e-9 * max(float(np.max(c)), 1e-300)
     info["pinned_stories"] = [int(s + 1) for s in np.nonzero(pinned)[0]]
+    info.update({"excess": ex.tolist(), "excess_se": se.tolist(),
+                 "ratio_to_others": (rho / np.maximum(ref, 1e-300)).tolist(),
+                 "modal_share_lower": share_lo.tolist()})
     flagged = []
     for s in range(n):
         if (left < MAX_UNEXPLAINED and ref[s] > 0 and ex[s] > DETERMINED * se[s]
