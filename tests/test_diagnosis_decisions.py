@@ -6,6 +6,7 @@ complex noise, written as an NPZ FRF file next to a case file.
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -512,3 +513,29 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     case, state = _baseline(load_case(str(tmp_path / "case.yaml")))
     s13 = _dashpot_refit(case, state)
     assert not s13["fits"] and s13["excess"] > s13["limit"], s13
+
+
+@pytest.mark.slow  # four short level fits and two shared-stiffness refits: ~20 s
+def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
+    """Two levels of one linear frame fit each other's masses and stiffnesses (scaled
+    chi-square rise within BIC's price); a story 2 that stiffens by 6 % at the second
+    level does not (the rise is many times the price), and the score test names story 2."""
+    from nlp.diagnose import _level_fit, _level_location, _shared_stiffness
+    rng = np.random.default_rng(3)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.015)
+    _write(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng))
+    _write(tmp_path, "same.npz", _accelerance(M, C, K, 1, rng))
+    _write(tmp_path, "stiff.npz", _accelerance(M, C, shear_K(k * [1.0, 1.06, 1.0]), 1, rng))
+    cfg = _case(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
+                {"model": "general", "zeta": 0.015})
+    cfg = replace(cfg, solver=replace(cfg.solver, options={"max_iter": 3000}))
+    ref = _level_fit(cfg, cfg.data.file)
+    for name, changed in (("same.npz", False), ("stiff.npz", True)):
+        lv = _level_fit(cfg, str(tmp_path / name), ref["z"])
+        lr = _shared_stiffness(ref, lv)
+        assert lr["converged"]
+        assert (lr["excess"] > lr["limit"]) == changed, (name, lr)
+        if changed:
+            assert lr["excess"] > 5 * lr["limit"]
+            assert _level_location(ref, lv)[0] == 1

@@ -92,3 +92,18 @@ def test_uncompiled_path_gives_the_same_numbers(tmp_path):
     np.testing.assert_allclose(pr.residuals(z)[1], pr_vm.residuals(z)[1], rtol=1e-10, atol=1e-12)
     a, b = pr.solve(), pr_vm.solve()
     np.testing.assert_allclose(a.z, b.z, rtol=1e-6, atol=1e-8)
+
+
+def test_stationarity_is_the_residual_seen_by_the_jacobian(tmp_path):
+    """The Gauss-Newton decrement g^T (J^T J)^-1 g equals |Q^T r|^2, the part of the
+    residual that the Jacobian's columns can reach (Q: orthonormal basis of range J), at
+    an interior point without constraints. A solve ends stationary: below STATIONARY."""
+    from nlp.problem import STATIONARY
+    case, pr, _ = _problem(tmp_path, noise=0.02)
+    assert pr.constraint_jacobian().shape[0] == 0
+    z = pr.z0 + 0.05 * np.random.default_rng(2).standard_normal(pr.params.n_z)
+    r, J = pr.residuals(z)
+    Q = np.linalg.qr(J)[0]
+    assert pr.gn_decrement(z) == pytest.approx(float(np.sum((Q.T @ r) ** 2)), rel=1e-6)
+    res = pr.solve()
+    assert res.success and pr.gn_decrement(res.z) < STATIONARY
