@@ -109,6 +109,8 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
 
 def _normalised(problem, z, case, idx, sigma):
     """Residuals over noise: ln|Ha/Hx|, or |ln(Ha/Hx)| / sqrt(2) when phase is fitted."""
+    if len(idx) == 0:   # windows widened over the whole band leave no held-out shoulder
+        return np.zeros((len(case.channels), 0))
     Ha = problem.channel_frfs(z, 2 * np.pi * case.f[idx])
     d = np.log(Ha / case.H[:, idx])
     if case.config.objective.residual == "complex":

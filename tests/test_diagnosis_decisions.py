@@ -539,3 +539,19 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
         if changed:
             assert lr["excess"] > 5 * lr["limit"]
             assert _level_location(ref, lv)[0] == 1
+
+
+def test_no_held_out_points_gives_an_empty_residual(tmp_path):
+    """Windows widened over the whole band leave no held-out shoulder: the normalised
+    residual there is empty, not a CasADi map over zero frequencies (held-back 610789/24
+    stopped with 'Degenerate map operation')."""
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(0)))
+    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+                {"model": "rayleigh", "zeta": 0.015})
+    case = assemble(cfg)
+    fit = _windows(cfg, case, 1)
+    pr = _problem(case, _target(case, fit, noise_sigma(case, fit)))
+    r = _normalised(pr, pr.z0, case, np.array([], int), np.zeros((3, 0)))
+    assert r.shape == (3, 0)
