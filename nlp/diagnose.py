@@ -85,12 +85,13 @@ def _target(case, idx, sigma):
 
 
 def _problem(case, target, enrichments=(), values=None, compile=True, optimize=True,
-             damping=None, max_iter=None):
+             damping=None, max_iter=None, residual=None):
     """The updating NLP; optimize=False compiles quicker, slower-running C (a refit).
 
     damping : optional (damping model, its ParameterSet) in place of the case's (the
     structured damping refit); the added physics keeps the case's reference values.
     max_iter : optional cap on the solver's iterations (below the case's own).
+    residual : optional residual form in place of the case's (the loss check's complex refit).
     """
     cfg = case.config
     refs = _refs(case)
@@ -101,7 +102,8 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
         key = "ipopt.max_iter" if "ipopt.max_iter" in options else "max_iter"
         options[key] = min(int(options.get(key, max_iter)), max_iter)
     solver = SolverConfig(cfg.solver.name, options, compile, optimize)
-    residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
+    if residual is None:
+        residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
     return UpdatingProblem(case.model, damping, params, target, residual=residual,
                            solver=solver, total_mass=cfg.parameters.total_mass,
                            enrichments=enrichments, refs=refs)
@@ -802,6 +804,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     phase = _phase_check(case, state, np.union1d(fit, held), log)
     if phase:
         inside["findings"] += phase["findings"]
+    loss = _loss_check(case, state, phase["findings"] if phase else [], log)
+    if loss:
+        inside["findings"] += loss["findings"]
     final = {(r["physics"], repr(r["location"])) for r in found}
     consistency = [c for c in consistency if (c["physics"], repr(c["location"])) in final
                    or not c["holds"]]
@@ -815,7 +820,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed,
-           "whole": whole, "phi": phis[0] if phis else 1.0, "phase": phase,
+           "whole": whole, "phi": phis[0] if phis else 1.0, "phase": phase, "loss": loss,
            "screening": screening and screening["report"], "baseline_converged": b_conv}
     return _verdict(cfg, case, out, log, ctx)
 
@@ -978,6 +983,97 @@ def _phase_check(case, state, idx, log):
     for f in out["findings"]:
         log("  phase: " + f["statement"])
     return out
+
+
+def _delay_enrichments(case, delays):
+    """SensorDelay enrichments and start values [ms] of the delay findings (a late input
+    makes every output channel lead by its delay)."""
+    out = []
+    for d in delays:
+        ch = d["location"]["channel"]
+        tau = next(iter(d["parameters"].values()))
+        chans = [c.name for c in case.channels] if ch == "input" else [ch]
+        out += [(SensorDelay(c), [-tau if ch == "input" else tau]) for c in chans]
+    return out
+
+
+def _loss_check(case, state, delays, log):
+    """Hysteretic loss from magnitude and phase together (nlp/diagnosis/loss.py): the final
+    model refitted with the complex residual over the coherently measured band, without
+    and with a loss eta K (whole frame) or eta K_s (each story); the delays found by the
+    phase check are refitted alongside. Only for a log-magnitude diagnosis of FRFs with a
+    phase: a complex diagnosis already weighs the loss candidates with their phase."""
+    from .diagnosis.band import band_mask
+    from .diagnosis.loss import band_points, loss_decision, loss_row
+    cfg = case.config
+    if (not case.has_phase or cfg.objective.residual == "complex"
+            or getattr(case, "noise", None) is None
+            or any(e.family == "hysteretic_damping" for e in state["current"])):
+        return None
+    fc = cfg.frequencies
+    idx = band_points(case.f, band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence),
+                      case.noise.sigma_phase, fc.fmax)
+    if idx.size < 20:
+        return None
+    # the complex residual (H_a - H_x) / |H_x| has the scatter of ln|H| in each part
+    target = _target(case, idx, noise_sigma(case, idx))
+    dl = _delay_enrichments(case, delays)
+    current = list(state["current"]) + [e for e, _ in dl]
+    starts = [v for _, v in dl]
+
+    def refit(extra, values):
+        pr = _problem(case, target, current + extra, optimize=False, max_iter=REFIT_ITER,
+                      residual="complex")
+        vals = [x for v in starts + values for x in v]
+        z0 = _at(pr, state["z"], vals) if vals else state["z"]
+        return pr, pr.solve(z0), z0
+
+    p0, r0, _ = refit([], [])
+    if not r0.success:
+        log(f"  loss check: the complex refit of the final model did not converge "
+            f"({r0.status}); no hysteretic loss is judged")
+        return {"rows": [], "findings": [], "points": int(idx.size), "converged": False}
+    n_res = p0.n_used
+    rows = []
+    for e in [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]:
+        sp = e.spec(_refs(case))
+        # start inside the box, not on the zero bound
+        pr, r1, z0 = refit([e], [[sp["lower"][0] + 0.5 * sp["scale"][0]]])
+        z1 = r1.z
+        if not np.isfinite(r1.f) or r1.f > r0.f:   # failed: its best point is the null
+            z1, chi, conv = z0, 2 * r0.f, False
+        else:
+            chi, conv = 2 * r1.f, bool(r1.success)
+        eta = float(pr.theta(z1)[-1])
+        se = float(_quasi_se(pr, z1)[0][-1])
+        rows.append({**loss_row(e.location, eta, se, chi, 2 * r0.f, n_res, pr.params.n_z, conv),
+                     "name": e.names[0]})
+    best, ties = loss_decision(rows)
+    findings = [] if best is None else [_loss_finding(best, ties)]
+    for f in findings:
+        log("  loss: " + f["statement"])
+    return {"rows": rows, "findings": findings, "points": int(idx.size), "converged": True,
+            "chi2_null": 2 * r0.f, "residuals": int(n_res)}
+
+
+def _loss_finding(best, ties):
+    where = ("the whole frame (eta K)" if not best["location"]
+             else f"story {best['location']['between'][1]} (eta K_s)")
+    name = best["name"]
+    text = (f"A frequency-independent (hysteretic) loss on {where}: eta = {best['eta']:.3g} +- "
+            f"{best['standard_error']:.2g}. A viscous C matches it at every resonance, so the "
+            f"magnitudes cannot tell; the phase off resonance can (scaled dBIC "
+            f"{best['delta_bic']:.1f} on magnitude and phase over the band).")
+    if ties:
+        text += (" Where it acts cannot be told apart from: "
+                 + "; ".join(f"{'the whole frame' if not t['location'] else 'story %d' % t['location']['between'][1]}"
+                             f" (dBIC {t['delta_bic']:.1f})" for t in ties) + ".")
+    return {"physics": "hysteretic_damping", "location": best["location"],
+            "parameters": {name: best["eta"]}, "uncertainty": {name: best["standard_error"]},
+            "evidence": {"source": "phase", "delta_bic": best["delta_bic"],
+                         "phi": best["phi"], "explained": best["explained"],
+                         "indistinguishable_locations": [t["location"] for t in ties]},
+            "statement": text}
 
 
 # ------------------------------------------------------------- other tests
@@ -1311,6 +1407,8 @@ def _verdict(cfg, case, out, log, ctx):
         result["screening"] = ctx["screening"]
     if ctx.get("phase") is not None:
         result["phase_check"] = ctx["phase"]["channels"]
+    if ctx.get("loss") is not None:
+        result["loss_check"] = {k: v for k, v in ctx["loss"].items() if k != "findings"}
     os.makedirs(out, exist_ok=True)
     plot_diagnosis(out, case, base, b_res.z, improved, z_imp, ctx["cells"], cells_after,
                    " + ".join(r["physics"] for r in found) if found else None)
