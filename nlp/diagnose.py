@@ -1021,14 +1021,12 @@ def _loss_check(case, state, delays, log):
     current = list(state["current"]) + [e for e, _ in dl]
     starts = [v for _, v in dl]
 
-    def refit(extra, values):
+    def refit(extra, z, values):
         pr = _problem(case, target, current + extra, optimize=False, max_iter=REFIT_ITER,
                       residual="complex")
-        vals = [x for v in starts + values for x in v]
-        z0 = _at(pr, state["z"], vals) if vals else state["z"]
-        return pr, pr.solve(z0), z0
+        return pr, pr.solve(_at(pr, z, values) if values else z)
 
-    p0, r0, _ = refit([], [])
+    p0, r0 = refit([], state["z"], [x for v in starts for x in v])
     if not r0.success:
         log(f"  loss check: the complex refit of the final model did not converge "
             f"({r0.status}); no hysteretic loss is judged")
@@ -1038,10 +1036,10 @@ def _loss_check(case, state, delays, log):
     for e in [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]:
         sp = e.spec(_refs(case))
         # start inside the box, not on the zero bound
-        pr, r1, z0 = refit([e], [[sp["lower"][0] + 0.5 * sp["scale"][0]]])
+        pr, r1 = refit([e], r0.z, [sp["lower"][0] + 0.5 * sp["scale"][0]])
         z1 = r1.z
-        if not np.isfinite(r1.f) or r1.f > r0.f:   # failed: its best point is the null
-            z1, chi, conv = z0, 2 * r0.f, False
+        if not np.isfinite(r1.f) or r1.f > r0.f:   # no better than without: the null
+            z1, chi, conv = _at(pr, r0.z, [0.0]), 2 * r0.f, bool(r0.success)
         else:
             chi, conv = 2 * r1.f, bool(r1.success)
         eta = float(pr.theta(z1)[-1])
