@@ -282,12 +282,18 @@ def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
     return cells, rf, rh
 
 
-def _quasi_se(pr, z):
-    """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood)."""
+def _quasi_se(pr, z, free=None):
+    """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood).
+
+    free : optional boolean mask of the decision variables the solve left free (the
+    others held by its bounds carry no error).
+    """
+    free = np.ones(pr.params.n_z, bool) if free is None else np.asarray(free, bool)
     r, J = pr.residuals(z)
     G = pr.constraint_jacobian()
-    cov, _ = quasi_covariance(J, r, max(pr.n_used - pr.params.n_z + G.shape[0], 1), G)
-    T = pr.params.T
+    G = G[:, free] if G.size else G
+    cov, _ = quasi_covariance(J[:, free], r, max(pr.n_used - int(free.sum()) + G.shape[0], 1), G)
+    T = pr.params.T[:, free]
     return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
 
 
@@ -1021,31 +1027,41 @@ def _loss_check(case, state, delays, log):
     current = list(state["current"]) + [e for e, _ in dl]
     starts = [v for _, v in dl]
 
-    def refit(extra, z, values):
-        pr = _problem(case, target, current + extra, optimize=False, max_iter=REFIT_ITER,
-                      residual="complex")
-        return pr, pr.solve(_at(pr, z, values) if values else z)
-
-    p0, r0 = refit([], state["z"], [x for v in starts for x in v])
+    # one problem holds every location's loss (eta K, eta K_1 ... eta K_n, last); the
+    # nested fits hold the other locations at zero by their bounds: one build, n + 2 solves
+    losses = [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]
+    m = len(losses)
+    pr = _problem(case, target, current + losses, optimize=False, max_iter=REFIT_ITER,
+                  residual="complex")
+    lo, hi = pr.bounds
+    held_lo, held_hi = lo.copy(), hi.copy()
+    held_lo[-m:] = held_hi[-m:] = 0.0          # z = 0 is eta = 0 (theta = scale z)
+    z0 = _at(pr, state["z"], [x for v in starts for x in v] + [0.0] * m)
+    r0 = pr.solve(z0, bounds=(held_lo, held_hi))
     if not r0.success:
         log(f"  loss check: the complex refit of the final model did not converge "
             f"({r0.status}); no hysteretic loss is judged")
         return {"rows": [], "findings": [], "points": int(idx.size), "converged": False}
-    n_res = p0.n_used
+    n_res = pr.n_used
     rows = []
-    for e in [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]:
-        sp = e.spec(_refs(case))
-        # start inside the box, not on the zero bound
-        pr, r1 = refit([e], r0.z, [sp["lower"][0] + 0.5 * sp["scale"][0]])
-        z1 = r1.z
+    for j, e in enumerate(losses):
+        i = pr.params.n_z - m + j
+        b_hi = held_hi.copy()
+        b_hi[i] = hi[i]
+        free = np.ones(pr.params.n_z, bool)
+        free[-m:] = False
+        free[i] = True
+        zs = r0.z.copy()
+        zs[i] = 0.5                                # eta = half its scale: inside the box
+        r1 = pr.solve(zs, bounds=(held_lo, b_hi))
         if not np.isfinite(r1.f) or r1.f > r0.f:   # no better than without: the null
-            z1, chi, conv = _at(pr, r0.z, [0.0]), 2 * r0.f, bool(r0.success)
+            z1, chi, conv = r0.z, 2 * r0.f, bool(r0.success)
         else:
-            chi, conv = 2 * r1.f, bool(r1.success)
-        eta = float(pr.theta(z1)[-1])
-        se = float(_quasi_se(pr, z1)[0][-1])
-        rows.append({**loss_row(e.location, eta, se, chi, 2 * r0.f, n_res, pr.params.n_z, conv),
-                     "name": e.names[0]})
+            z1, chi, conv = r1.z, 2 * r1.f, bool(r1.success)
+        eta = float(pr.theta(z1)[pr.params.n_theta - m + j])
+        se = float(_quasi_se(pr, z1, free)[0][pr.params.n_theta - m + j])
+        rows.append({**loss_row(e.location, eta, se, chi, 2 * r0.f, n_res, int(free.sum()),
+                                conv), "name": e.names[0]})
     best, ties = loss_decision(rows)
     findings = [] if best is None else [_loss_finding(best, ties)]
     for f in findings:

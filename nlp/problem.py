@@ -558,16 +558,18 @@ class UpdatingProblem:
         """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
         return getattr(self, "_screen_def", None) is not None
 
-    def solve(self, z0=None, screen=False):
+    def solve(self, z0=None, screen=False, bounds=None):
         """One local solve from z0 (default: the case's initial point).
 
         screen : stop at IPOPT's scaled error ``SCREEN_TOL`` (1e-5) instead of the
             case's tolerance (1e-8), when :attr:`can_screen`. The scatter search
             screens its starts this way and polishes the best ones with the full
             tolerance (:func:`nlp.search.scatter_search`).
+        bounds : optional (lower, upper) on z in place of :attr:`bounds`: equal ones hold a
+            variable, so nested models share one compiled problem.
         """
         z0 = self.z0 if z0 is None else np.asarray(z0, float)
-        lo, hi = self.bounds
+        lo, hi = self.bounds if bounds is None else bounds
         z0c = np.clip(z0, lo, hi)
         g0 = np.zeros(self.ng)
         solver = self._solver

@@ -8,7 +8,6 @@ non-proportional viscous C, 1 % complex noise, written as an FRF file.
 import numpy as np
 import pytest
 
-from conftest import shear_K
 from nlp.diagnose import _loss_check
 from nlp.diagnosis.evidence import BIC_TIE
 from nlp.diagnosis.loss import loss_decision, loss_row
