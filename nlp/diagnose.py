@@ -60,8 +60,8 @@ SUGGESTIONS = {
     "base_flexibility": "a sensor on the base (table) to measure the base motion directly",
     "secondary_oscillator": "a sensor on the suspected appendage, or a shaker at another floor",
     "local_damper": "a second excitation level or a wider frequency band around the higher modes",
-    "hysteretic_damping": "FRFs over a wider frequency band (viscous and hysteretic loss differ "
-                          "in how damping grows with frequency)",
+    "hysteretic_damping": "the phase of the FRFs over a wide band (viscous and hysteretic loss "
+                          "differ in phase off resonance)",
     "nonadjacent_coupling": "a second shaker position (force at another floor)",
     "sensor_gain": "a calibration check of that sensor, or a second sensor on the same floor",
     "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
@@ -1005,8 +1005,8 @@ def _delay_enrichments(case, delays):
 
 def _loss_check(case, state, delays, log):
     """Hysteretic loss from magnitude and phase together (nlp/diagnosis/loss.py): the final
-    model refitted with the complex residual over the coherently measured band, without
-    and with a loss eta K (whole frame) or eta K_s (each story); the delays found by the
+    model refitted with the complex residual over the coherently measured band off the
+    half-power windows, without and with a loss eta K (whole frame) or eta K_s (each story); the delays found by the
     phase check are refitted alongside. Only for a log-magnitude diagnosis of FRFs with a
     phase: a complex diagnosis already weighs the loss candidates with their phase."""
     from .diagnosis.band import band_mask
@@ -1018,7 +1018,7 @@ def _loss_check(case, state, delays, log):
         return None
     fc = cfg.frequencies
     idx = band_points(case.f, band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence),
-                      case.noise.sigma_phase, fc.fmax)
+                      case.noise.sigma_phase, fc.fmax, exclude=_windows(cfg, case, 1))
     if idx.size < 20:
         return None
     # the complex residual (H_a - H_x) / |H_x| has the scatter of ln|H| in each part
