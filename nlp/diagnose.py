@@ -580,13 +580,27 @@ def _nonlinearity(cfg, log):
         if best is None or lr["excess"] - lr["limit"] > best[4]["excess"] - best[4]["limit"]:
             best = (i, zsc, lv, scores, lr)
     i, zsc, lv, scores, lr = best
+    harm = _harmonics(cfg, fits)
+    located_by = "score test of the equivalent stiffnesses"
+    if harm and harm["best"] is not None:
+        i, located_by = harm["story_index"], "out-of-band harmonics"
     zs = float(zsc[i])
     log(f"levels: story {i + 1} stiffness {ref['k'][i]:.1f} -> {lv['k'][i]:.1f} N/m "
         f"({zs:+.1f} standard errors; largest change {np.max(np.abs(zsc)):.1f}); the other "
         f"level's data with this level's masses and stiffnesses: chi-square +{lr['excess']:.1f} "
         f"(scaled; BIC limit {lr['limit']:.1f})")
-    if lr["excess"] <= lr["limit"] or not lr["converged"]:   # an unconverged fit overstates it
-        return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr}
+    if harm:
+        log(f"  out-of-band response: {harm['z_excess']:.1f} noise SDs above the noise over "
+            f"{harm['bins']} bins; one force per story explains "
+            + ", ".join(f"{100 * s:.0f} %" for s in harm["share"])
+            + (f": story {i + 1}" if harm["best"] is not None else ": not decided"))
+    # levels that need stiffnesses of their own (an unconverged shared fit overstates it),
+    # or harmonics of one story's force: a linear structure has no response where it is
+    # not driven
+    by_levels = lr["excess"] > lr["limit"] and lr["converged"]
+    if not by_levels and not (harm and harm["best"] is not None):
+        return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
+                "harmonics": harm}
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
@@ -607,17 +621,57 @@ def _nonlinearity(cfg, log):
         "uncertainty": {f"k{i + 1}_level1": float(ref["k_se"][i]),
                         f"k{i + 1}_level2": float(lv["k_se"][i])},
         "evidence": {"z_score": zs, "z_scores": [float(x) for x in zsc], "shared_stiffness": lr,
-                     "location_scores": scores, "stiffness_on_bound": ref["on_bound"] + lv["on_bound"],
+                     "location_scores": scores, "located_by": located_by, "harmonics": harm, "stiffness_on_bound": ref["on_bound"] + lv["on_bound"],
                      "frequency_shift_percent": shift,
                      "held_out_chi2_other_level": {"level1_model": before, "level2_model": after}},
-        "statement": (f"The structure is not linear: the equivalent stiffness of story {i + 1} "
-                      f"(between {'the ground' if i == 0 else f'floor {i}'} and floor {i + 1}) "
-                      f"changes by {100 * rel:+.1f} % between excitation levels "
-                      f"({zs:+.1f} standard errors; modal frequencies shift "
-                      f"{', '.join(f'{x:+.2f} %' for x in shift)}). A level-dependent "
-                      "equivalent linear model is given for each level."),
+        "statement": _nonlinear_statement(i, rel, zs, shift, harm),
     }
-    return {"found": finding, "max_z": zs, "held_out": (before, after)}
+    return {"found": finding, "max_z": zs, "held_out": (before, after), "harmonics": harm}
+
+
+def _nonlinear_statement(i, rel, zs, shift, harm):
+    where = f"story {i + 1} (between {'the ground' if i == 0 else f'floor {i}'} and floor {i + 1})"
+    shifts = ", ".join(f"{x:+.2f} %" for x in shift)
+    tail = "A level-dependent equivalent linear model is given for each level."
+    if harm and harm["best"] is not None:
+        # one equivalent stiffness per level can move the wrong way on a strongly nonlinear
+        # chirp record (blind 500199/43: a stiffening spring at -10.6 %, -2.7 SE), so the
+        # harmonics lead and the stiffness change is only reported
+        share = min(100 * harm["share"][harm["best"]], 100.0)
+        return (f"The structure is not linear: modal frequencies shift {shifts} between "
+                f"excitation levels, and the response above the excitation band (harmonics) is "
+                f"that of one force across {where} ({share:.0f} % of its power above the "
+                f"noise). The equivalent stiffness of that story changes by {100 * rel:+.1f} % "
+                f"({zs:+.1f} standard errors). {tail}")
+    return (f"The structure is not linear: the equivalent stiffness of {where} changes by "
+            f"{100 * rel:+.1f} % between excitation levels ({zs:+.1f} standard errors; modal "
+            f"frequencies shift {shifts}). {tail}")
+
+
+def _harmonics(cfg, fits):
+    """Out-of-band harmonics of the level tests (:mod:`nlp.diagnosis.harmonics`), located
+    on the story patterns of the reference level's model; None without time records."""
+    from .diagnosis.harmonics import harmonic_location, story_vectors
+    ref = fits[0]
+    if ref["case"].records is None:
+        return None
+    bs = story_vectors(ref["case"].model.K_infl)
+    groups = [j for j, b in enumerate(bs) if b is not None]
+    if not groups:
+        return None
+    M, K, C = ref["problem"].matrices(ref["z"])
+    nd = ref["case"].model.n
+    B = np.column_stack([bs[j] for j in groups])
+    B = np.vstack([B, np.zeros((M.shape[0] - nd, B.shape[1]))])
+    tests = [{"records": f["case"].records, "nperseg": cfg.data.nperseg, "window": cfg.data.window,
+              "H_model": (lambda w, f=f: f["problem"].channel_frfs(f["z"], w))}
+             for f in fits if f["case"].records is not None]
+    c = ref["case"]
+    f_top = max(float(cfg.frequencies.fmax or 0.0), float(c.f[c.selected].max()))
+    out = harmonic_location(tests, M, C, K, B, c.channels, f_top)
+    out["groups"] = groups
+    out["story_index"] = groups[out["best"]] if out["best"] is not None else None
+    return out
 
 
 def _prune(case, target, found, state, n_fit, held, sig_held, log):
@@ -890,8 +944,10 @@ def _inside_model_class(cfg, case, state, absorbed, log):
             "statement": (f"The fitted damping is concentrated in story {s}: a dashpot of "
                           f"{d['excess']:.3g} +- {d['standard_error']:.2g} N s/m between {where} "
                           f"and floor {s} beyond the share of the other stories "
-                          f"({d['ratio']:.1f}x their damping per unit stiffness; it supplies "
-                          f"{100 * d['modal_share']:.0f} % of one mode's damping).")})
+                          f"({d['ratio']:.1f}x their damping per unit stiffness; as a damping "
+                          f"ratio of its story it is {d['story_zeta_ratio']:.1f}x the structure's "
+                          f"median modal damping, and it supplies {100 * d['modal_share']:.0f} % "
+                          "of one mode's damping).")})
     # absorbed candidates, kept only where the fitted parameters point at them
     names = pr.params.names
     fixed = {p.name for p in pr.params.params if p.fixed}
