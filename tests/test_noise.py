@@ -74,3 +74,24 @@ def test_chirp_noise_above_last_mode_is_not_a_mode(tmp_path):
     near = np.min(np.abs(f_sel[:, None] - modes[None, :]) / modes[None, :], axis=1)
     assert near.max() < 0.1, f_sel[near >= 0.1]
     assert all(np.any(np.abs(f_sel - fr) < 0.01 * fr) for fr in modes)
+
+
+def test_resolution_bias_of_a_flat_noisy_estimate_is_its_noise():
+    """On a flat FRF the resolution bias read from second differences is noise alone: for
+    a Welch H1 (Hann, 50 % overlap) of y = x + noise its mean square is
+    (m2/2)^2 x second_difference_factor x s^2, s the point scatter of ln|H1| (measured
+    here directly, H = 1), which the file route takes off the squared bias."""
+    from scipy import signal
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal(400 * 1024)
+    y = x + 0.3 * rng.standard_normal(x.size)
+    _, sxy = signal.csd(x, y, nperseg=1024)
+    _, sxx = signal.welch(x, nperseg=1024)
+    H = (sxy / sxx)[None, 5:-5]
+    s_true = np.std(np.log(np.abs(H)))
+    m2 = noise.kernel_moment("hann", 1024)
+    b2 = np.mean(noise.resolution_bias(H, m2)[0, 1:-1] ** 2)
+    expect = (0.5 * m2) ** 2 * noise.second_difference_factor("hann") * s_true ** 2
+    assert b2 == pytest.approx(expect, rel=0.1)
+    s, _ = noise.local_scatter(np.arange(H.shape[1], dtype=float), H, window="hann")
+    assert np.median(s) == pytest.approx(s_true, rel=0.1)
