@@ -189,7 +189,10 @@ def converged(problem, res):
     if not (np.isfinite(res.f) and np.all(np.isfinite(res.z))):
         return False
     if problem.solver_config.name == "ipopt":
-        return res.status in IPOPT_CONVERGED
+        # IPOPT's own tests, or a point UpdatingProblem.solve found stationary where IPOPT's
+        # absolute tolerance cannot be met (Gauss-Newton decrement, or Newton steps)
+        return res.status in IPOPT_CONVERGED or (bool(res.success)
+                                                 and res.status.startswith("Stationary"))
     return bool(res.success)
 
 

@@ -233,3 +233,22 @@ def test_checkpoint_resume_ignores_torn_line_and_refuses_another_search(problem,
     with pytest.raises(InputError, match="there is none"):
         Checkpoint(str(tmp_path / "none" / "checkpoint.jsonl"), resume=True).open(problem, cfg,
                                                                                    starts)
+
+
+def test_stationary_points_compete_and_unchecked_ones_do_not(problem):
+    """A solve UpdatingProblem.solve found stationary (success and a `Stationary ...`
+    status) competes like IPOPT's own convergence; the same status without success, or a
+    limit status, does not."""
+    from nlp.search import converged
+    z = np.asarray(problem.z0, float)
+    f = float(problem.objective(z))
+
+    def res(status, success):
+        return LocalResult(z=z, f=f, success=success, status=status, iterations=3000,
+                           seconds=1.0, z0=z)
+
+    assert converged(problem, res("Stationary after 7 Newton steps (decrement 5.4e-05)", True))
+    assert converged(problem, res("Stationary (Gauss-Newton decrement 3.0e-07)", True))
+    assert not converged(problem, res("Stationary after 7 Newton steps (decrement 5.4e-05)", False))
+    assert not converged(problem, res("Maximum_Iterations_Exceeded", False))
+    assert converged(problem, res("Solve_Succeeded", True))
