@@ -43,6 +43,8 @@ def test_family_found_at_its_location(tmp_path, family, effect, location):
     assert res["fit"]["after"][key] <= 0.5 * res["fit"]["before"][key]
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert saved["verdict"] == res["verdict"] and saved["findings"][0]["statement"]
+    if family == "nonlinearity":
+        assert saved["level_comparison"]["found"] is True
 
 
 @pytest.mark.slow  # 25-40 s each: a full diagnosis
@@ -53,6 +55,15 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
                           "levels": levels}, seed=12)
     assert res["verdict"] == "adequate", res["findings"]
     assert res["findings"] == []
+    saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    if levels > 1:
+        # written although nothing was named: the levels of a linear frame share their
+        # masses and stiffnesses within BIC's price of the held parameters
+        lc = saved["level_comparison"]
+        assert lc["found"] is False
+        assert lc["shared_stiffness"]["excess"] <= lc["shared_stiffness"]["limit"]
+    else:
+        assert "level_comparison" not in saved
     # provenance: the case file's sha256, recomputed here
     import hashlib
     prov = json.loads((tmp_path / "out" / "diagnosis.json").read_text())["provenance"]

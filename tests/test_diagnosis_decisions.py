@@ -537,8 +537,10 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
 def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
     """Two levels of one linear frame fit each other's masses and stiffnesses (scaled
     chi-square rise within BIC's price); a story 2 that stiffens by 6 % at the second
-    level does not (the rise is many times the price), and the score test names story 2."""
-    from nlp.diagnose import _level_fit, _level_location, _shared_stiffness
+    level does not (the rise is many times the price), and the score test names story 2,
+    as does freeing one story's stiffness at a time: story 2's refit takes nearly all of
+    the rise (over 0.8 of it), the others under half."""
+    from nlp.diagnose import _level_fit, _level_location, _release_location, _shared_stiffness
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, K = _frame(m, k, zeta=0.015)
@@ -557,6 +559,12 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
         if changed:
             assert lr["excess"] > 5 * lr["limit"]
             assert _level_location(ref, lv)[0] == 1
+            drops = _release_location(ref, lv, lr)
+            assert int(np.argmax(drops)) == 1
+            # story 2 freed is the other level's own model up to its damping: the drop
+            # takes the whole rise (less what the level's own masses would add)
+            assert drops[1] > 0.8 * lr["excess"]
+            assert max(drops[0], drops[2]) < 0.5 * lr["excess"]
 
 
 def test_no_held_out_points_gives_an_empty_residual(tmp_path):
