@@ -588,12 +588,20 @@ def _release_location(ref, lv, lr):
     drops = []
     for i in range(sa.stop - sa.start):
         if lv["problem"].params.params[sa.start + i].fixed:
-            drops.append(0.0)
+            drops.append((0.0, True))
             continue
         res, _, _ = _shared_fit(ref, lv, release=i, theta_start=np.asarray(lr["theta"]))
-        drops.append(float((lr["chi2_shared"] - 2 * res.f) / lr["phi"]) if res.success
-                     else float("nan"))
+        drops.append((float((lr["chi2_shared"] - 2 * res.f) / lr["phi"]), bool(res.success)))
     return drops
+
+
+def _released_story(drops):
+    """The story of the largest drop, or None when it is not certain: an unconverged refit's
+    drop is only a lower bound, so every other story's refit must have converged."""
+    best = int(np.argmax([d for d, _ in drops]))
+    if all(ok for j, (_, ok) in enumerate(drops) if j != best):
+        return best
+    return None
 
 
 def _nonlinearity(cfg, log):
@@ -644,11 +652,14 @@ def _nonlinearity(cfg, log):
     release = None
     if by_levels:
         release = _release_location(ref, lv, lr)
-        if not (harm and harm["best"] is not None) and np.all(np.isfinite(release)):
-            i, located_by = int(np.argmax(release)), "one story's stiffness freed at the other level"
+        j = _released_story(release)
+        if not (harm and harm["best"] is not None) and j is not None:
+            i, located_by = j, "one story's stiffness freed at the other level"
             zs = float(zsc[i])
         log("  one story's stiffness freed at the other level: chi-square drop (scaled) "
-            + ", ".join(f"{d:.1f}" for d in release))
+            + ", ".join(f"{d:.1f}" + ("" if ok else " (unconverged: at least)")
+                        for d, ok in release))
+        release = [{"drop": d, "converged": ok} for d, ok in release]
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))

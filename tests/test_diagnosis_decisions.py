@@ -540,7 +540,8 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
     level does not (the rise is many times the price), and the score test names story 2,
     as does freeing one story's stiffness at a time: story 2's refit takes nearly all of
     the rise (over 0.8 of it), the others under half."""
-    from nlp.diagnose import _level_fit, _level_location, _release_location, _shared_stiffness
+    from nlp.diagnose import (_level_fit, _level_location, _release_location,
+                              _released_story, _shared_stiffness)
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, K = _frame(m, k, zeta=0.015)
@@ -559,12 +560,23 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
         if changed:
             assert lr["excess"] > 5 * lr["limit"]
             assert _level_location(ref, lv)[0] == 1
-            drops = _release_location(ref, lv, lr)
-            assert int(np.argmax(drops)) == 1
+            release = _release_location(ref, lv, lr)
+            assert all(ok for _, ok in release)
+            drops = [d for d, _ in release]
+            assert _released_story(release) == 1
             # story 2 freed is the other level's own model up to its damping: the drop
             # takes the whole rise (less what the level's own masses would add)
             assert drops[1] > 0.8 * lr["excess"]
             assert max(drops[0], drops[2]) < 0.5 * lr["excess"]
+
+
+def test_a_release_location_needs_every_other_refit_converged():
+    """An unconverged refit's drop is only a lower bound: the largest drop names its story
+    only when the others converged, whichever converged itself."""
+    from nlp.diagnose import _released_story
+    assert _released_story([(5.0, True), (40.0, False), (9.0, True)]) == 1
+    assert _released_story([(5.0, True), (40.0, True), (9.0, False)]) is None
+    assert _released_story([(50.0, True), (40.0, True), (9.0, True)]) == 0
 
 
 def test_no_held_out_points_gives_an_empty_residual(tmp_path):
