@@ -239,12 +239,18 @@ def _polish(problem, results):
 
     Screening (IPOPT tol 1e-5 instead of 1e-8) saves a fifth of the iterations of
     every start; only the candidates for the best need the last digits. A polish
-    that does not converge leaves the screened result (converged at 1e-5) in place.
+    that does not converge leaves the screened result (converged at 1e-5) in place;
+    a screened result already stationary (:meth:`UpdatingProblem.solve`) is kept.
     """
     if not getattr(problem, "can_screen", False):
         return ()
     top = sorted((r.f, i) for i, r in results.items() if r.success)[:POLISH]
     for _, i in top:
+        if str(results[i].status).startswith("Stationary"):
+            # stationary by the Newton test at the screening stop: a full-tolerance
+            # IPOPT re-solve only creeps to its iteration limit again (blind 832173/51,
+            # a 5-storey null: twice the baseline's time, then the same point)
+            continue
         r = results[i]
         p = solve_start(problem, r.z)
         if p.success:

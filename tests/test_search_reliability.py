@@ -252,3 +252,32 @@ def test_stationary_points_compete_and_unchecked_ones_do_not(problem):
     assert not converged(problem, res("Stationary after 7 Newton steps (decrement 5.4e-05)", False))
     assert not converged(problem, res("Maximum_Iterations_Exceeded", False))
     assert converged(problem, res("Solve_Succeeded", True))
+
+
+def test_stationary_screened_starts_are_not_solved_again(problem, monkeypatch):
+    """Screened starts are re-solved at the full tolerance, except those already found
+    stationary by the Newton test: IPOPT would only creep to its limit again. Each
+    kind is counted by the calls that reach UpdatingProblem.solve."""
+    from nlp import search
+    z = np.asarray(problem.z0, float)
+    calls = []
+
+    def fake(self, z0=None, screen=False, bounds=None):
+        calls.append(screen)
+        z0 = np.asarray(z0, float)
+        f = float(self.objective(z0))
+        return LocalResult(z=z0, f=f, success=True, status="Solve_Succeeded", iterations=1,
+                           seconds=0.0, z0=z0)
+
+    monkeypatch.setattr(UpdatingProblem, "solve", fake)
+    monkeypatch.setattr(UpdatingProblem, "can_screen", property(lambda self: True))
+    f = float(problem.objective(z))
+    results = {i: LocalResult(z=z, f=f + i, success=True,
+                              status=("Stationary after 2 Newton steps (decrement 1e-05)"
+                                      if i % 2 else "Solve_Succeeded"),
+                              iterations=5, seconds=0.0, z0=z) for i in range(6)}
+    polished = search._polish(problem, results)
+    assert polished == tuple(range(6))
+    assert calls == [False, False, False]           # starts 0, 2 and 4 only
+    assert all(results[i].status.startswith("Stationary") for i in (1, 3, 5))
+    assert all(results[i].iterations == 6 for i in (0, 2, 4))
