@@ -90,7 +90,8 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
 
     damping : optional (damping model, its ParameterSet) in place of the case's (the
     structured damping refit); the added physics keeps the case's reference values.
-    max_iter : optional cap on the solver's iterations (below the case's own).
+    max_iter : optional cap on the solver's iterations (below the case's own); a capped
+        problem is not finished by Newton steps where it stops (nlp/polish.py).
     residual : optional residual form in place of the case's (the loss check's complex refit).
     """
     cfg = case.config
@@ -104,9 +105,14 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
     solver = SolverConfig(cfg.solver.name, options, compile, optimize)
     if residual is None:
         residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
-    return UpdatingProblem(case.model, damping, params, target, residual=residual,
-                           solver=solver, total_mass=cfg.parameters.total_mass,
-                           enrichments=enrichments, refs=refs)
+    pr = UpdatingProblem(case.model, damping, params, target, residual=residual,
+                         solver=solver, total_mass=cfg.parameters.total_mass,
+                         enrichments=enrichments, refs=refs)
+    # a capped refit bounds its optimum and is continued when adopted (_continue_refit);
+    # Newton steps from wherever each of its starts stopped cost more than the cap saves
+    # (retired 832173/44: minutes per round on a 2,700-residual, 27-parameter refit)
+    pr.polish_unconverged = max_iter is None
+    return pr
 
 
 def _normalised(problem, z, case, idx, sigma):

@@ -110,7 +110,8 @@ def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY):
         if held.any():
             gi, hii = g[idx0[held]], np.diag(H0)[held]
             wrong = (at_lo[idx0[held]] & (gi < 0)) | (at_hi[idx0[held]] & (gi > 0))
-            dec += float(np.sum(gi[wrong] ** 2 / np.maximum(hii[wrong], 1e-300)))
+            with np.errstate(over="ignore"):   # a flat direction: inf, not a minimum
+                dec += float(np.sum(gi[wrong] ** 2 / np.maximum(hii[wrong], 1e-300)))
         if pd and dec < tol:
             return z, f, dec, True, step
         if step == max_steps:

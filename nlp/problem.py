@@ -559,6 +559,10 @@ class UpdatingProblem:
         """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
         return getattr(self, "_screen_def", None) is not None
 
+    # Newton polish where IPOPT ends unconverged; off for solves capped on purpose below
+    # the case's iteration limit (candidate refits that only bound their optimum)
+    polish_unconverged = True
+
     def solve(self, z0=None, screen=False, bounds=None):
         """One local solve from z0 (default: the case's initial point).
 
@@ -595,7 +599,7 @@ class UpdatingProblem:
             dec = self.gn_decrement(z)
             if dec < STATIONARY:
                 success, status = True, f"Stationary (Gauss-Newton decrement {dec:.1e})"
-            elif self.params.n_z <= MAX_PARAMETERS and np.isfinite(f):
+            elif self.polish_unconverged and self.params.n_z <= MAX_PARAMETERS and np.isfinite(f):
                 # J^T J misses the curvature of large residuals: finish with full Newton
                 # steps from where IPOPT ended. Not earlier: on blind 824513/42's shared-
                 # stiffness fit, stopping IPOPT once f fell by < 0.05 per 100 iterations and

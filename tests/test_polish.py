@@ -98,3 +98,33 @@ def test_a_coupled_variable_on_its_bound_is_held_and_the_rest_solved():
     assert ok
     np.testing.assert_allclose(z, [u, z1], atol=1e-9)
     assert fg(z)[1][0] < 0          # the gradient presses z_0 against its upper bound
+
+
+def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
+    """A diagnosis refit capped below the case's iteration limit stops unconverged and
+    is left so (it is continued when adopted); the same NLP without the cap is finished
+    by Newton steps when IPOPT stops at its limit."""
+    from helpers_case import write_case
+    from nlp import diagnose as D
+    from nlp.case import assemble
+    from nlp.config import load_case
+    from nlp.problem import UpdatingProblem
+    path, _ = write_case(str(tmp_path), noise=0.02, seed=1,
+                         frequencies={"method": "half_power", "k": 2.0, "fmax": 7.0})
+    case = assemble(load_case(path))
+    calls = []
+    real = UpdatingProblem._polish
+
+    def counted(self, *a):
+        calls.append(self.polish_unconverged)
+        return real(self, *a)
+
+    monkeypatch.setattr(UpdatingProblem, "_polish", counted)
+    capped = D._problem(case, case.target, compile=False, max_iter=2)
+    res = capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
+    assert not capped.polish_unconverged and calls == []
+    assert res.status == "Maximum_Iterations_Exceeded" and not res.success
+    capped.polish_unconverged = True     # the uncapped rule on the same stop
+    capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
+    assert calls == [True]
+    assert D._problem(case, case.target, compile=False).polish_unconverged
