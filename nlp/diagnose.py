@@ -41,7 +41,7 @@ from .provenance import provenance
 from .search import SearchConfig, scatter_search
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
                                  effect_terms, evidence, held_out_excess, quasi_covariance,
-                                 scaled_delta_bic, significance, tied)
+                                 scaled_delta_bic, significance, tied, undetermined)
 
 __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
            "HELD_OUT_GAIN"]
@@ -1413,6 +1413,8 @@ def _statement(r):
         where = "of the whole structure"
     pars = ", ".join(f"{k} = {v:.4g} +- {r['uncertainty'][k]:.2g}"
                      for k, v in r["parameters"].items())
+    if r.get("not_determined"):
+        pars += "; not determined by the data: " + ", ".join(r["not_determined"])
     words = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
              "secondary_oscillator": "a secondary oscillator (appendage)",
              "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic damping",
@@ -1423,6 +1425,14 @@ def _statement(r):
 
 def _public(r):
     d = {k: r[k] for k in ("physics", "location", "parameters", "uncertainty")}
+    names = list(r["parameters"])
+    open_ = undetermined(r["physics"], names, [r["parameters"][n] for n in names],
+                         [r["uncertainty"][n] for n in names])
+    if open_:
+        # reported without a value: its error exceeds it (nlp.diagnosis.evidence.NUISANCE)
+        d["parameters"] = {n: v for n, v in r["parameters"].items() if n not in open_}
+        d["uncertainty"] = {n: v for n, v in r["uncertainty"].items() if n not in open_}
+        d["not_determined"] = open_
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
                      "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
                      "raw_delta_chi2": r.get("raw_delta_chi2"),
@@ -1431,7 +1441,7 @@ def _public(r):
                      "converged": r.get("converged", True)}
     if r.get("split"):
         d["evidence"]["resolution"] = r["split"]
-    d["statement"] = _statement(r)
+    d["statement"] = _statement(d)
     return d
 
 

@@ -16,8 +16,8 @@ from scipy.linalg import eigh
 from conftest import shear_K
 from nlp.config import load_case
 from nlp.case import assemble
-from nlp.diagnose import (_classify, _decide, _normalised, _problem, _repolish, _target,
-                          _windows, diagnose, noise_sigma)
+from nlp.diagnose import (_classify, _decide, _normalised, _problem, _public, _repolish,
+                          _target, _windows, diagnose, noise_sigma)
 from nlp.diagnosis.evidence import (BIC_TIE, dispersion, evidence, held_out_excess,
                                     scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
@@ -250,6 +250,35 @@ def test_effect_within_three_standard_errors_is_not_accepted():
     r = _result("sensor_gain", {"channel": "a1"}, 1000.0, value=0.05, se=0.02)
     _decide([r], 4000.0, 10.0, 190, 200)
     assert not r["significant"] and not r["accepted"]
+
+
+def _appendage(mu, se_mu, f_se, zeta, zeta_se):
+    return {"physics": "secondary_oscillator", "location": {"floor": 4},
+            "parameters": {"mu4": mu, "f_s4": 7.7, "zeta_s4": zeta},
+            "uncertainty": {"mu4": se_mu, "f_s4": f_se, "zeta_s4": zeta_se},
+            "chi2": 2000.0, "held_out": 1.0, "at_bound": False, "score": 600.0}
+
+
+def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
+    """The appendage's mass ratio is 10 standard errors from zero; its damping ratio
+    is not determined (its own resonance lies between the fitted windows). The
+    damping never decides: the appendage is accepted and reported without it, so no
+    reported parameter has an error above its value. An undetermined frequency (not
+    a nuisance) or a mass ratio within 3 errors of zero still refuses it."""
+    ok = _appendage(0.05, 0.005, 0.05, 0.0245, 0.11)
+    freq_open = _appendage(0.05, 0.005, 9.0, 0.0245, 0.11)
+    mass_open = _appendage(0.05, 0.02, 0.05, 0.0245, 0.11)
+    _decide([ok, freq_open, mass_open], 3000.0, 6.0, 1700, 1771)
+    assert ok["accepted"] and not freq_open["accepted"] and not mass_open["accepted"]
+    assert "f_s4" in freq_open["why_not"] and "mu4" in mass_open["why_not"]
+    pub = _public(ok)
+    assert pub["not_determined"] == ["zeta_s4"] and set(pub["parameters"]) == {"mu4", "f_s4"}
+    assert all(pub["uncertainty"][n] < abs(v) for n, v in pub["parameters"].items())
+    assert "zeta_s4" in pub["statement"] and "not determined" in pub["statement"]
+    # a determined damping ratio is reported with its error, as before
+    firm = _appendage(0.05, 0.005, 0.05, 0.0245, 0.004)
+    _decide([firm], 3000.0, 6.0, 1700, 1771)
+    assert firm["accepted"] and "not_determined" not in _public(firm)
 
 
 def test_extra_mode_found_with_its_channels_and_nothing_else():
