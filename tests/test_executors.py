@@ -102,3 +102,45 @@ def test_dask_local_cluster_same_results():
     for _, pid, token in out.values():
         tokens.setdefault(pid, set()).add(token)
     assert all(len(t) == 1 for t in tokens.values())
+
+
+_KILLED_PARENT = r"""
+import os, sys, time
+from nlp.executors import Setup, make_executor
+
+def slow(ctx, x):
+    time.sleep(120)
+    return x
+
+ex = make_executor("local", workers=2)
+stream = ex.stream(Setup(value=None), slow, [(0, 0), (1, 1)])
+print(" ".join(str(p.pid) for p in stream._procs), flush=True)
+time.sleep(120)
+"""
+
+
+@pytest.mark.skipif(not os.sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux")
+def test_workers_die_with_a_killed_parent():
+    """A parent killed with SIGKILL runs no clean-up: the kernel must end its workers."""
+    import signal
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-c", _KILLED_PARENT], stdout=subprocess.PIPE,
+                         text=True)
+    pids = [int(x) for x in p.stdout.readline().split()]
+    assert len(pids) == 2
+    for pid in pids:
+        os.kill(pid, 0)     # alive while their parent is
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    deadline = time.time() + 10
+    alive = set(pids)
+    while alive and time.time() < deadline:
+        for pid in list(alive):
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                alive.discard(pid)
+        time.sleep(0.1)
+    assert not alive, f"workers {sorted(alive)} outlived their killed parent"
