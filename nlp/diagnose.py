@@ -437,9 +437,8 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
     dispersion (nlp.diagnosis.evidence.held_out_excess). Candidates are ranked,
     and told apart, by the sum (``evidence``). A candidate is
     accepted when it is not on a bound, its effect is clearly non-zero (|value| >
-    3 quasi-likelihood standard errors, every error below its value), and either
-    the scaled BIC drops by BIC_ACCEPT with a held-out gain, or the held-out
-    error halves while the fit does not get worse. An appendage must also make a
+    3 quasi-likelihood standard errors, every error below its value), and the
+    scaled BIC drops by BIC_ACCEPT with a held-out gain. An appendage must also make a
     resonance of its own that the data resolve (nlp/diagnosis/resolution.py).
     """
     if not results:
@@ -462,9 +461,13 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
                               f"resolution ({sp['resolution_hz']:.3f} Hz): one reshaped peak, "
                               "not a separate resonance")
         r["significant"], r["why_not"] = ok, why
+        # no acceptance on the held-out points alone: their mean z^2 is carried by the few
+        # anti-resonance points where a tiny parameter moves the model most and the noise
+        # model is least sure (retired 799498/62, a null FRF file: a 1-4 coupling of
+        # -7.7 N/m, 0.25 % of a story, at dBIC -2.4 "halved" it, 2.99 -> 1.15; on the 325
+        # retired cases kept, that rule accepted nothing else)
         r["accepted"] = not r["at_bound"] and ok and (
-            (r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
-            or (r["delta_bic"] <= 0 and r["held_out"] <= 0.5 * ref_held))
+            r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
     held_out_excess(results, n_held)
     return phi
 

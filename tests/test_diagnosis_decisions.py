@@ -18,7 +18,7 @@ from nlp.config import load_case
 from nlp.case import assemble
 from nlp.diagnose import (_classify, _decide, _normalised, _problem, _public, _repolish,
                           _target, _windows, diagnose, noise_sigma)
-from nlp.diagnosis.evidence import (BIC_TIE, dispersion, evidence, held_out_excess,
+from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, dispersion, evidence, held_out_excess,
                                     scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
 
@@ -195,6 +195,27 @@ def test_five_different_candidates_within_the_window_are_ambiguous():
                      inside=[], adequate=False) == "ambiguous"
     # without the quasi-likelihood scale the same chi-squares would be 50 apart: one winner
     assert tied(acc, window=BIC_TIE / phi) == []
+
+
+def test_a_lower_held_out_error_alone_accepts_nothing():
+    """Retired 799498/62 (a null FRF file): a coupling 3.5 errors from zero at dBIC -2.4 cut
+    the held-out chi-square from 2.99 to 1.15 through a few anti-resonance points. Acceptance
+    needs the BIC drop of BIC_ACCEPT as well; with it, a 20 % held-out gain suffices."""
+    ref_chi, nu, n_fit = 280.0, 290, 300      # reduced chi-square below 1: phi = 1
+    weak = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, ref_chi - 8.1,
+                        value=-7.7, se=2.2), held_out=1.15)
+    _decide([weak], ref_chi, 2.99, nu, n_fit)
+    # 1 parameter: dBIC = -8.1 + ln(300) = -2.4
+    assert weak["delta_bic"] == pytest.approx(-8.1 + math.log(300))
+    assert -BIC_ACCEPT < weak["delta_bic"] < 0 and weak["significant"]
+    assert not weak["accepted"]
+    strong = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, ref_chi - 60.0,
+                          value=-7.7, se=2.2), held_out=0.79 * 2.99)
+    _decide([strong], ref_chi, 2.99, nu, n_fit)
+    assert strong["delta_bic"] <= -BIC_ACCEPT and strong["accepted"]
+    strong["held_out"] = 0.81 * 2.99      # the fit improves, the held-out points do not
+    _decide([strong], ref_chi, 2.99, nu, n_fit)
+    assert not strong["accepted"]
 
 
 def test_held_out_points_tell_apart_candidates_that_fit_the_windows_alike():
