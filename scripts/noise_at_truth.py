@@ -1,0 +1,97 @@
+"""The case's noise model against the true FRF of a blind benchmark case.
+
+For a null or ordinary-change case of ``scripts/make_blind_benchmark.py`` the true
+structure is in ``truth.json`` (``system``: M, C, K, Kh). Its FRF is computed here from
+those matrices, independently of the package's FRF code:
+
+* ground input a_g: relative coordinates q = (K + j Kh - w^2 M + j w C)^-1 (-M 1) a_g;
+  an accelerometer reads -w^2 q + a_g (the base sensor a_g), an LVDT q;
+* force at floor p: q = (K + j Kh - w^2 M + j w C)^-1 e_p; accelerometers -w^2 q, LVDTs q.
+
+Then z = ln|H_estimate / H_true| / sigma at every point, with sigma from the case's own
+noise model (``nlp.noise.sigma_ln``). If the model is right, mean z^2 is 1 wherever it is
+taken. Printed: mean and median z^2 on the fitted half-power windows, on the held-out
+shoulders (windows 3x wider, minus the fitted ones) and over the whole band, and the median
+ratio of the local error (RMS over 21 points) to sigma in the tenth of points where |H| is
+smallest (anti-resonances), largest (peaks), and in between.
+
+    python scripts/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...]
+"""
+
+import argparse
+import json
+import os
+import sys
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from nlp.case import assemble  # noqa: E402
+from nlp.config import load_case  # noqa: E402
+from nlp.diagnose import _windows  # noqa: E402
+from nlp.noise import sigma_ln  # noqa: E402
+
+
+def true_frf(truth, case):
+    """(n_ch, n_f) FRF of the true system at the case's channels and frequencies."""
+    S = truth["system"]
+    M, C, K = (np.asarray(S[k], float) for k in ("M", "C", "K"))
+    Kh = np.asarray(S.get("Kh") or np.zeros_like(K), float)
+    n = M.shape[0]
+    ground = truth["excitation"] == "ground"
+    b = -M @ np.ones(n) if ground else np.eye(n)[truth["force_floor"] - 1]
+    out = []
+    for w in 2 * np.pi * case.f:
+        q = np.linalg.solve(K + 1j * Kh - w ** 2 * M + 1j * w * C, b)
+        row = []
+        for ch in case.config.data.channels:
+            i = int(ch.floor)
+            disp = (ch.quantity == "displacement") or (ch.output in ("receptance",))
+            if i == 0:
+                row.append(1.0 + 0j if (ground and not disp) else 0j)
+            elif disp:
+                row.append(q[i - 1])
+            else:   # records are absolute accelerations; a file says which it holds
+                absolute = ground and ch.output != "accelerance"
+                row.append(-w ** 2 * q[i - 1] + (1.0 if absolute else 0.0))
+        out.append(row)
+    return np.array(out).T
+
+
+def report(folder):
+    truth = json.load(open(os.path.join(folder, "truth.json")))
+    if truth.get("effects"):
+        return f"{folder}: has effects, skipped (the truth system then differs from the case's model)"
+    cfg = load_case(os.path.join(folder, "case.yaml"))
+    case = assemble(cfg)
+    Ht = true_frf(truth, case)
+    keep = np.all(np.abs(Ht) > 0, axis=1)          # a base accelerometer under a force input reads 0
+    band = np.where((case.f >= cfg.frequencies.fmin) & (case.f <= cfg.frequencies.fmax))[0]
+    fit = _windows(cfg, case, 1)
+    held = np.setdiff1d(_windows(cfg, case, 3), fit)
+    lines = [f"{folder}: route {truth['route']}, {truth['excitation']} input"]
+    for name, idx in (("fitted", fit), ("held-out", held), ("band", band)):
+        z = np.log(np.abs(case.H[keep][:, idx] / Ht[keep][:, idx])) / sigma_ln(case, idx)[keep]
+        lines.append(f"  {name:9s} {z.size:6d} points: mean z^2 {np.mean(z ** 2):5.2f}, "
+                     f"median z^2 {np.median(z ** 2):5.2f} (0.45 for Gaussian errors)")
+    e = np.log(np.abs(case.H[keep][:, band] / Ht[keep][:, band]))
+    ratio = np.sqrt(uniform_filter1d(e ** 2, 21, axis=1)) / sigma_ln(case, band)[keep]
+    depth = np.log(np.abs(Ht[keep][:, band]))
+    lo = depth < np.percentile(depth, 10, axis=1, keepdims=True)
+    hi = depth > np.percentile(depth, 90, axis=1, keepdims=True)
+    lines.append(f"  local error / sigma, median: anti-resonance tenth {np.median(ratio[lo]):.2f}, "
+                 f"peak tenth {np.median(ratio[hi]):.2f}, between {np.median(ratio[~lo & ~hi]):.2f}")
+    return "\n".join(lines)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("cases", nargs="+", help="blind benchmark case folders (null or ordinary)")
+    for folder in ap.parse_args().cases:
+        print(report(folder), flush=True)
+
+
+if __name__ == "__main__":
+    main()
