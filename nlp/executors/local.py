@@ -34,7 +34,9 @@ def _die_with_parent(parent_pid):
 
     A parent killed with SIGKILL runs no clean-up; its workers would otherwise go on
     solving, or wait forever on a pipe that a sibling worker still holds open (a
-    blind scoring run's 900-s timeout left one idle for 70 minutes).
+    blind scoring run's 900-s timeout left one idle for 70 minutes). The kernel ties the
+    signal to the thread that forked the worker: streams are opened from the thread that
+    reads them, so that thread outlives its workers.
     """
     try:
         import ctypes
