@@ -417,19 +417,25 @@ def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
 
 def test_story_damping_ratio_by_hand():
     """One story's dashpot as a damping ratio of its story oscillator over the median
-    modal damping ratio: with C = a1 K (stiffness-proportional) every mode has
-    zeta_r = a1 omega_r / 2, so the ratio of an excess e on story s is
-    e / (2 sqrt(k_s m_s)) / (a1 median(omega) / 2)."""
-    from nlp.diagnosis.priors import story_damping_ratio
+    modal damping ratio of the structure without it: C = a1 K + e P_2, and without the
+    dashpot (C = a1 K, stiffness-proportional) every mode has zeta_r = a1 omega_r / 2, so
+    the ratio is e / (2 sqrt(k_2 m_2)) / (a1 median(omega) / 2). With the dashpot left
+    in its own yardstick (removed = 0) the median is that of a1 K + e P_2, by a separate
+    eigen-solution."""
+    from nlp.diagnosis.priors import story_damping_ratio, story_patterns
     m, k = np.array([4.0, 6.0, 5.0]), np.array([3000.0, 2500.0, 2000.0])
     M, K = np.diag(m), shear_K(k)
     a1 = 0.002
-    w = np.sqrt(eigh(K, M, eigvals_only=True))
+    w2, phi = eigh(K, M)
     e = np.array([0.0, 7.0, 0.0])
-    got, zmed = story_damping_ratio(M, K, a1 * K, e)
-    assert zmed == pytest.approx(a1 * np.median(w) / 2, rel=1e-10)
-    assert got[1] == pytest.approx(7.0 / (2 * np.sqrt(2500.0 * 6.0)) / zmed, rel=1e-10)
+    C = a1 * K + 7.0 * story_patterns(3)[1]
+    got, zmed = story_damping_ratio(M, K, C, e)
+    assert zmed[1] == pytest.approx(a1 * np.median(np.sqrt(w2)) / 2, rel=1e-10)
+    assert got[1] == pytest.approx(7.0 / (2 * np.sqrt(2500.0 * 6.0)) / zmed[1], rel=1e-10)
     assert got[0] == 0.0 and got[2] == 0.0
+    z_in = np.median(np.diag(phi.T @ C @ phi) / (2 * np.sqrt(w2)))
+    got_in, zmed_in = story_damping_ratio(M, K, C, e, removed=np.zeros(3))
+    assert zmed_in[1] == pytest.approx(z_in, rel=1e-10) and z_in > zmed[1]
 
 
 def test_damper_must_stand_out_one_standard_error_below_its_estimate():
@@ -446,8 +452,7 @@ def test_damper_must_stand_out_one_standard_error_below_its_estimate():
     def ratio(c2, minus=0.0):
         C = pr.matrices(np.r_[base[:2], c2, base[3]])[2]
         ex = _excess(C, M, K)[0]
-        ex[1] -= minus
-        return story_damping_ratio(M, K, C, ex)[0][1]
+        return story_damping_ratio(M, K, C, ex - np.r_[0.0, minus, 0.0], removed=ex)[0][1]
 
     target = STORY_ZETA + 0.05
     lo_, hi_ = 3.0, 200.0           # the c_2 whose ratio is target, by bisection (monotone)
