@@ -162,7 +162,7 @@ def main():
                     rows[r["case"]] = r
     names = sorted(d for d in os.listdir(a.bench) if os.path.isfile(os.path.join(a.bench, d, "case.yaml")))
     if a.only:   # in the order given
-        names = [d for p in a.only.split(",") for d in names if d.startswith(p)]
+        names = list(dict.fromkeys(d for p in a.only.split(",") for d in names if d.startswith(p)))
     todo = []
     for name in names:
         if name in rows:
