@@ -655,9 +655,10 @@ def main():
     ap.add_argument("--base-channel", action="store_true",
                     help="list the table accelerometer (floor 0) in the shake-table case files "
                          "(the records always carry it)")
-    ap.add_argument("--prior", default="0.1,0.3",
+    ap.add_argument("--prior", default="0.05,0.15",
                     help="relative 1-sigma uncertainty of the design masses and stiffnesses "
-                         "written as parameters.prior (default 0.1,0.3; 'none' leaves it out)")
+                         "written as parameters.prior (default 0.05,0.15: design tolerances of "
+                         "+-10 %% and +-30 %% read as two sigmas; 'none' leaves it out)")
     ap.add_argument("--check", action="store_true",
                     help="after writing, compare each linear case's FRF estimate with the exact FRF")
     ap.add_argument("--residual", default="log_magnitude",
