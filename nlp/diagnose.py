@@ -48,8 +48,9 @@ __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS", "BIC_ACCEPT",
 
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
 # A level-dependent structure whose reference level the linear model misses by more than
-# this reduced chi-square is not searched for linear candidates: the contact engages at
-# that level too (one-segment chirps of blind seeds 500199 and 832173: 138-1221), so any
+# this reduced chi-square, in the fitted windows or in their held-out shoulders, is not
+# searched for linear candidates: the contact engages at that level too (one-segment chirps
+# of blind seeds 500199 and 832173: 138-1221; 408154/43: 1.9 fitted, 19 held out), so any
 # candidate's gain is the nonlinearity's; those searches took 600-900 s and named
 # appendages that did not hold on the other level.
 LEVEL_MISFIT = 10.0
@@ -872,10 +873,10 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
     nonlin = _nonlinearity(cfg, log) if _nonlin is False else _nonlin
     # a level-dependent structure that the linear model at the reference level misses by
     # far: a linear candidate's gain there is the nonlinearity's, not its own
-    level_bound = bool(nonlin and nonlin["found"] and chi_b / nu > LEVEL_MISFIT)
+    level_bound = bool(nonlin and nonlin["found"] and max(chi_b / nu, held_b) > LEVEL_MISFIT)
     if level_bound:
         log(f"the structure is level-dependent and the reference level's reduced chi-square is "
-            f"{chi_b / nu:.0f}: linear candidates are not searched on it")
+            f"{chi_b / nu:.0f} (held-out {held_b:.0f}): linear candidates are not searched on it")
     found, alternatives, absorbed, ties, tried, indistinct = [], [], [], [], [], []
     phis, unconfirmed, consistency = [], [], []
     others = _setup_others(cfg)
@@ -1538,8 +1539,9 @@ def _verdict(cfg, case, out, log, ctx):
         statements.insert(0, nonlin["found"]["statement"])
         if ctx.get("level_bound"):
             statements.insert(1, f"No linear model fits the reference level (reduced chi-square "
-                                 f"{chi_b / nu:.0f}): the level dependence is there too, so no "
-                                 "linear candidate, prior or damper is judged on it.")
+                                 f"{chi_b / nu:.1f}, {held_b:.1f} on the held-out shoulders): the "
+                                 "level dependence is there too, so no linear candidate, prior or "
+                                 "damper is judged on it.")
     elif not cfg.data.level_files and (verdict == "ambiguous" or remaining):
         suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
     if indistinct:
