@@ -15,6 +15,13 @@ shoulders (windows 3x wider, minus the fitted ones) and over the whole band, and
 ratio of the local error (RMS over 21 points) to sigma in the tenth of points where |H| is
 smallest (anti-resonances), largest (peaks), and in between.
 
+For an FRF file (an average with a Hann window at the file's own resolution), the expected
+estimate is also computed exactly, as the true FRF convolved with the window's power kernel
+on a grid of 1/16 bin (+-8 bins), to check the resolution-bias term of the noise model at the
+fitted points where that bias exceeds 0.05: the slope of the actual error on the exact bias,
+the median ratio of the model's bias formula to the exact one, and (with coherence) mean and
+median z^2 of the coherence variance alone, against the truth and against the smoothed truth.
+
     python scripts/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...]
 """
 
@@ -31,7 +38,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from nlp.case import assemble  # noqa: E402
 from nlp.config import load_case  # noqa: E402
 from nlp.diagnose import _windows  # noqa: E402
-from nlp.noise import sigma_ln  # noqa: E402
+from nlp.noise import kernel_moment, resolution_bias, sigma_ln, var_ln_welch  # noqa: E402
 
 
 def true_frf(truth, case):
@@ -60,6 +67,49 @@ def true_frf(truth, case):
     return np.array(out).T
 
 
+class _At:
+    """The frequencies and channels true_frf needs, at shifted frequencies."""
+
+    def __init__(self, case, f):
+        self.f, self.config = f, case.config
+
+
+def smoothed_frf(truth, case, per_bin=16, half=8):
+    """Expected Hann-windowed average of the true FRF: its convolution with the window's
+    power kernel |W(nu)|^2, nu in bins (a flat input spectrum)."""
+    L = 4096
+    w = np.hanning(L + 1)[:-1]                       # periodic Hann
+    K = np.abs(np.fft.fft(w, L * per_bin)) ** 2
+    nu = np.fft.fftfreq(L * per_bin, d=1.0 / L)
+    keep = np.abs(nu) <= half
+    nu, K = nu[keep], K[keep] / K[keep].sum()
+    df = case.f[1] - case.f[0]
+    return sum(k * true_frf(truth, _At(case, case.f + v * df)) for v, k in zip(nu, K))
+
+
+def bias_lines(truth, case, cfg, Ht, keep, fit):
+    """The resolution-bias check of an FRF file (see the module docstring)."""
+    if truth["route"] != "frf_file" or cfg.data.window != "hann":
+        return []
+    Hs = smoothed_frf(truth, case)
+    e = np.log(np.abs(case.H / Ht))[keep][:, fit]
+    b = np.log(np.abs(Hs / Ht))[keep][:, fit]
+    formula = resolution_bias(Ht, kernel_moment("hann", 1024))[keep][:, fit]
+    big = np.abs(b) > 0.05
+    if not big.any():
+        return ["  resolution bias: no fitted point with an exact bias over 0.05"]
+    lines = [f"  resolution bias at {int(big.sum())} fitted points with |b| > 0.05: slope of the "
+             f"error on the exact bias {np.sum(e[big] * b[big]) / np.sum(b[big] ** 2):.2f}, "
+             f"formula / exact (median) {np.median(formula[big] / b[big]):.2f}"]
+    if case.coherence is not None and case.n_averages:
+        var = var_ln_welch(case.coherence, float(case.n_averages))[keep][:, fit]
+        for name, err in (("truth", e), ("smoothed truth", e - b)):
+            z2 = err ** 2 / var
+            lines.append(f"  coherence variance alone against the {name}: mean z^2 "
+                         f"{np.mean(z2):.2f}, median {np.median(z2):.2f}")
+    return lines
+
+
 def report(folder):
     truth = json.load(open(os.path.join(folder, "truth.json")))
     if truth.get("effects"):
@@ -83,6 +133,7 @@ def report(folder):
     hi = depth > np.percentile(depth, 90, axis=1, keepdims=True)
     lines.append(f"  local error / sigma, median: anti-resonance tenth {np.median(ratio[lo]):.2f}, "
                  f"peak tenth {np.median(ratio[hi]):.2f}, between {np.median(ratio[~lo & ~hi]):.2f}")
+    lines += bias_lines(truth, case, cfg, Ht, keep, fit)
     return "\n".join(lines)
 
 
