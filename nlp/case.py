@@ -532,7 +532,7 @@ def assemble(cfg, channels=None, data_file=None):
     # the model sees the estimate's window where the FRF is a windowed average; the
     # numeric (sparse, reduced) backends do not carry it, so their cases keep the
     # noise model's resolution bias instead
-    kernel = estimator_kernel(cfg, f, records) \
+    kernel = estimator_kernel(cfg, f, records, coherence, n_avg) \
         if choose_backend(cfg.model.frf_backend, model.n) == "dense" else None
     noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
                                         records=records, channels=tuple(channels),

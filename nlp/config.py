@@ -120,8 +120,8 @@ class DataConfig:
     input: dict = None                     # time histories (required): {column, quantity, unit, floor, scale, sign, from: {column, mass, unit}}
     estimator: str = "H1"                  # H1 | H2 | Hv (total least squares)
     nperseg: object = None                 # Welch segment [samples] or "all" (default: largest power of 2 <= N/8)
-    overlap: float = 0.5                   # Welch segment overlap, fraction [-]
-    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all; FRF files: the analyzer's window (its resolution bias at peaks counts as noise), none if not windowed
+    overlap: float = 0.5                   # Welch (or the FRF file's) segment overlap [-]
+    window: str = "hann"                   # Welch window (scipy.signal name); boxcar when nperseg is all; FRF files: the analyzer's window (with coherence and averages the model carries its kernel, else its resolution bias at peaks counts as noise), none if not windowed
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels

@@ -21,9 +21,12 @@ from nlp.config import load_case
 @pytest.mark.parametrize("route", sf.ROUTES)
 def test_null_case_has_reduced_chi2_near_one(tmp_path, route):
     """One null case per FRF route: one-segment chirp, Welch, FRF file without and
-    with coherence; the package's noise model makes the fit a chi-square."""
+    with coherence (simulated per bin, and an analyzer's Welch average); the package's
+    noise model makes the fit a chi-square."""
     chi2, model, case = sf.reduced_chi2(sf.null_case(route, tmp_path, seed=1))
-    assert model.route == {"frf_scatter": "scatter"}.get(route, route)
+    assert model.route == {"frf_scatter": "scatter", "frf_welch": "frf_coherence"}.get(route, route)
+    # an analyzer's Hann average with its coherence: the model carries the window's kernel
+    assert (case.target.kernel is not None) == (route in ("welch", "frf_welch"))
     assert 0.8 <= chi2 <= 1.3, chi2
     inside = (case.f > 1) & (case.f < 9)
     s = model.sigma_ln[:, inside]
@@ -135,3 +138,42 @@ def test_file_noise_covers_the_error_at_a_sharp_peak(zeta):
         k = int(np.argmax(np.abs(Ht)))
         z2.append((np.log(np.abs(H / Ht)) / m.sigma_ln[0])[k - 3:k + 4] ** 2)
     assert 0.6 < np.mean(z2) < 1.6, np.mean(z2)
+
+
+def _file_case(window="hann", coherence=True, n_averages=13, overlap=0.5):
+    """A flat FRF file (H = 1 + 0j on a uniform grid) as assemble would pass it on."""
+    from types import SimpleNamespace
+    f = np.arange(0.5, 10.0, 0.025)
+    cfg = SimpleNamespace(data=SimpleNamespace(window=window, overlap=overlap, nperseg=None))
+    coh = np.full((1, f.size), 0.9) if coherence else None
+    return cfg, f, SimpleNamespace(config=cfg, f=f, H=np.ones((1, f.size), complex),
+                                   coherence=coh, records=None, channels=(None,),
+                                   n_averages=n_averages if coherence else None)
+
+
+def test_an_averaged_file_with_coherence_carries_its_window_kernel():
+    """A file with its coherence and averages is a windowed average: three taps with the
+    Hann power kernel's moments (m2 = 1/3 bin^2 from Parseval, m4 = 1/3), so h = 1 bin
+    and a = m2^2 / (2 m4) = 1/6. Without coherence, or with window none, no kernel."""
+    cfg, f, _ = _file_case()
+    h, a = noise.estimator_kernel(cfg, f, None, np.ones((1, f.size)), 13)
+    assert h == pytest.approx(2 * math.pi * 0.025, rel=1e-3)
+    assert a == pytest.approx(1 / 6, rel=1e-3)
+    assert noise.estimator_kernel(cfg, f, None, None, None) is None
+    cfg_none, _, _ = _file_case(window="none")
+    assert noise.estimator_kernel(cfg_none, f, None, np.ones((1, f.size)), 13) is None
+
+
+def test_file_coherence_variance_counts_overlapping_averages():
+    """13 Hann averages at half overlap are worth 13 / (1 + 2 (1 - 1/13) / 36)
+    independent ones (Welch 1967, rho_1 = 1/6): Var ln|H| = (1 - g^2) / (2 n_eff g^2).
+    With the window's kernel in the model the fit's sigma holds no resolution bias."""
+    cfg, f, case = _file_case()
+    case.kernel = noise.estimator_kernel(cfg, f, None, case.coherence, 13)
+    m = noise.noise_model(case)
+    n_eff = 13 / (1 + 2 * (1 - 1 / 13) / 36)
+    assert m.route == "frf_coherence"
+    assert m.n_averages == pytest.approx(n_eff, rel=1e-3)
+    np.testing.assert_allclose(m.sigma_ln ** 2, (1 - 0.9) / (2 * n_eff * 0.9), rtol=1e-6)
+    _, _, case0 = _file_case(overlap=0.0)
+    assert noise.noise_model(case0).n_averages == pytest.approx(13, rel=1e-6)
