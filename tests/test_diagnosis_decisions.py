@@ -285,13 +285,19 @@ def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
     is not determined (its own resonance lies between the fitted windows). The
     damping never decides: the appendage is accepted and reported without it, so no
     reported parameter has an error above its value. An undetermined frequency (not
-    a nuisance) or a mass ratio within 3 errors of zero still refuses it."""
+    a nuisance) or a mass ratio whose error exceeds it still refuses it. The mass ratio
+    is tested by the chi-square drop (likelihood ratio over phi > 9), not by its Wald
+    error: 2.5 errors from zero with a drop of 1000 is found; a drop of 8 is not."""
     ok = _appendage(0.05, 0.005, 0.05, 0.0245, 0.11)
     freq_open = _appendage(0.05, 0.005, 9.0, 0.0245, 0.11)
-    mass_open = _appendage(0.05, 0.02, 0.05, 0.0245, 0.11)
-    _decide([ok, freq_open, mass_open], 3000.0, 6.0, 1700, 1771)
+    mass_open = _appendage(0.05, 0.06, 0.05, 0.0245, 0.11)
+    wald_weak = _appendage(0.05, 0.02, 0.05, 0.0245, 0.11)
+    small_drop = dict(_appendage(0.05, 0.005, 0.05, 0.0245, 0.11), chi2=2992.0)
+    _decide([ok, freq_open, mass_open, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
     assert ok["accepted"] and not freq_open["accepted"] and not mass_open["accepted"]
     assert "f_s4" in freq_open["why_not"] and "mu4" in mass_open["why_not"]
+    assert wald_weak["significant"] and wald_weak["accepted"]
+    assert not small_drop["significant"] and "chi-square drop" in small_drop["why_not"]
     pub = _public(ok)
     assert pub["not_determined"] == ["zeta_s4"] and set(pub["parameters"]) == {"mu4", "f_s4"}
     assert all(pub["uncertainty"][n] < abs(v) for n, v in pub["parameters"].items())
@@ -654,3 +660,30 @@ def test_no_held_out_points_gives_an_empty_residual(tmp_path):
     pr = _problem(case, _target(case, fit, noise_sigma(case, fit)))
     r = _normalised(pr, pr.z0, case, np.array([], int), np.zeros((3, 0)))
     assert r.shape == (3, 0)
+
+
+def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
+    """A tiny oscillator's score peaks next to every resonance (it splits the peak): when
+    a floor's best scan frequency lies within 10 % of a fitted resonance, the best one
+    away from all of them is refitted too. Scores here are a stand-in profile: a spike
+    at the 2 Hz resonance and a broad bump at 3.5 Hz, between the resonances."""
+    from types import SimpleNamespace
+    import nlp.diagnose as D
+    f = np.linspace(0.5, 12.0, 2301)
+    sel = np.concatenate([np.flatnonzero(np.abs(f - fr) <= 0.04 * fr) for fr in (2.0, 5.0, 8.0)])
+    case = SimpleNamespace(f=f, selected=sel, model=SimpleNamespace(n=2))
+
+    def score(f0):
+        return 100.0 * math.exp(-((f0 - 2.0) / 0.05) ** 2) + 40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2)
+
+    monkeypatch.setattr(D, "_problem", lambda *a, **k: None)
+    monkeypatch.setattr(D, "_at", lambda pr, z, v: v[1])
+    monkeypatch.setattr(D, "_score_at", lambda pr, f0, k: (score(f0), 1.0))
+    out = D._scan_secondary(case, None, [], None)
+    assert [e.floor for e, _ in out] == [1, 1, 2, 2]
+    near, away = out[0][0].f0, out[1][0].f0
+    assert abs(near / 2.0 - 1) < 0.1
+    assert abs(away / 3.5 - 1) < 0.05
+    # a best frequency away from every resonance needs no second candidate
+    monkeypatch.setattr(D, "_score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
+    assert len(D._scan_secondary(case, None, [], None)) == 2
