@@ -308,6 +308,34 @@ def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
     assert firm["accepted"] and "not_determined" not in _public(firm)
 
 
+def test_a_better_unresolved_appendage_is_said_beside_the_finding():
+    """An appendage refused only because its mode sits inside the bandwidth of a structural
+    mode, but ahead of the accepted coupling on BIC and on the held-out points (retired
+    146094/12): the coupling is still the best accepted candidate, and the appendage is
+    returned as a better explanation the data cannot resolve. One that trails the coupling,
+    or one refused for its errors, is not."""
+    from nlp.diagnose import _better_unresolved
+    split = {"separation_hz": 0.49, "bandwidth_hz": 0.68, "resolution_hz": 0.05,
+             "appendage_mode_hz": 8.39, "nearest_mode_hz": 7.90, "resolved": False}
+    coupling = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, 2000.0), held_out=1.89)
+    ahead = dict(_appendage(0.05, 0.005, 0.05, 0.0245, 0.004), chi2=1600.0, held_out=1.18,
+                 split=split)
+    behind = dict(ahead, location={"floor": 3}, chi2=2150.0, held_out=2.0)
+    shaky = dict(ahead, location={"floor": 2}, uncertainty=dict(ahead["uncertainty"], mu4=0.2))
+    results = [coupling, ahead, behind, shaky]
+    _decide(results, 3000.0, 6.0, 1700, 1771, n_held=2000)
+    assert coupling["accepted"] and not ahead["accepted"] and ahead["unresolved"]
+    assert "not a separate resonance" in ahead["why_not"]
+    assert not shaky["unresolved"]          # refused on its own errors, not on resolution
+    out = _better_unresolved(results, coupling, 6.0)
+    assert [r["location"] for r in out] == [{"floor": 4}]
+    assert out[0]["instead_of"] == "nonadjacent_coupling {'between': [1, 4]}"
+    # resolved, it would simply be accepted and ranked ahead of the coupling
+    res = dict(ahead, split=dict(split, resolved=True))
+    _decide([coupling, res], 3000.0, 6.0, 1700, 1771, n_held=2000)
+    assert res["accepted"] and _better_unresolved([coupling, res], coupling, 6.0) == []
+
+
 def test_extra_mode_found_with_its_channels_and_nothing_else():
     """A 3-storey frame 'measured' with an appendage on floor 3 tuned to 11 Hz (a mode the
     3-DOF model lacks); the model is the frame alone. The extra mode is reported at its
