@@ -15,6 +15,15 @@ shoulders (windows 3x wider, minus the fitted ones) and over the whole band, and
 ratio of the local error (RMS over 21 points) to sigma in the tenth of points where |H| is
 smallest (anti-resonances), largest (peaks), and in between.
 
+When the model carries the estimate's window (Welch records, FRF files with coherence:
+``case.target.kernel``), the truth is also smoothed by the same three taps, which is what
+the fit compares with, and the fitted points' mean z^2 against it is printed with its
+sampling spread: a block bootstrap over frequencies (blocks of 4 bins, every channel of a
+bin together, since the errors of one bin are shared by the channels through the input).
+With ``--split`` a Welch case is also split into halves of its record, and the mean of
+(ln|H_a / H_b|)^2 / (var_a + var_b) over the band is printed: the noise model checked on
+the records alone. A summary over the cases closes the output.
+
 For an FRF file (an average with a Hann window at the file's own resolution), the expected
 estimate is also computed exactly, as the true FRF convolved with the window's power kernel
 on a grid of 1/16 bin (+-8 bins), to check the resolution-bias term of the noise model at the
@@ -22,7 +31,7 @@ fitted points where that bias exceeds 0.05: the slope of the actual error on the
 the median ratio of the model's bias formula to the exact one, and (with coherence) mean and
 median z^2 of the coherence variance alone, against the truth and against the smoothed truth.
 
-    python scripts/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...]
+    python scripts/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...] [--split]
 """
 
 import argparse
@@ -38,7 +47,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from nlp.case import assemble  # noqa: E402
 from nlp.config import load_case  # noqa: E402
 from nlp.diagnose import _windows  # noqa: E402
-from nlp.noise import kernel_moment, resolution_bias, sigma_ln, var_ln_welch  # noqa: E402
+from nlp.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
+                       welch_averages)
 
 
 def true_frf(truth, case):
@@ -110,7 +120,52 @@ def bias_lines(truth, case, cfg, Ht, keep, fit):
     return lines
 
 
-def report(folder):
+def kernel_lines(truth, case, keep, fit, stats):
+    """Fitted points against the truth smoothed by the model's own three taps."""
+    h, a = case.target.kernel                     # h in rad/s
+    dh = h / (2 * np.pi)
+    Hk = (a * true_frf(truth, _At(case, case.f - dh)) + (1 - 2 * a) * true_frf(truth, case)
+          + a * true_frf(truth, _At(case, case.f + dh)))
+    z2 = (np.log(np.abs(case.H[keep][:, fit] / Hk[keep][:, fit])) / sigma_ln(case, fit)[keep]) ** 2
+    col = z2.mean(axis=0)
+    nb = max(col.size // 4, 1)
+    blocks = col[:nb * 4].reshape(nb, -1).mean(axis=1) if col.size >= 4 else col
+    rng = np.random.default_rng(0)
+    boot = [blocks[rng.integers(0, blocks.size, blocks.size)].mean() for _ in range(2000)]
+    stats["truth"].append(float(z2.mean()))
+    return [f"  fitted points against the truth seen through the model's window (three taps): "
+            f"mean z^2 {z2.mean():.2f} +- {np.std(boot):.2f} (block bootstrap, "
+            f"{col.size} frequencies), median z^2 {np.median(z2):.2f}"]
+
+
+def split_lines(case, cfg, keep, stats):
+    """The noise model on the records alone: the two halves of the record against each other."""
+    from scipy import signal
+    rec = case.records
+    L = int(cfg.data.nperseg)
+    x = rec.data["__input__"]
+    y = np.array([rec.data[c.name] for c in case.channels])
+    n = x.size // 2
+    halves = []
+    for sl in (slice(0, n), slice(n, 2 * n)):
+        kw = dict(fs=rec.fs, window=cfg.data.window, nperseg=L, noverlap=int(cfg.data.overlap * L))
+        f, sxx = signal.welch(x[sl], **kw)
+        _, syy = signal.welch(y[:, sl], axis=-1, **kw)
+        _, sxy = signal.csd(x[sl][None], y[:, sl], axis=-1, **kw)
+        i = np.searchsorted(f, case.f - 1e-9 * (f[1] - f[0]))
+        g2 = (np.abs(sxy) ** 2 / (sxx * syy))[:, i]
+        n_eff = welch_averages(n, L, int(cfg.data.overlap * L), cfg.data.window)[1]
+        halves.append(((sxy / sxx)[:, i], var_ln_welch(g2, n_eff)))
+    (Ha, va), (Hb, vb) = halves
+    band = np.where((case.f >= cfg.frequencies.fmin) & (case.f <= cfg.frequencies.fmax))[0]
+    band = band[np.all(case.coherence[:, band] > cfg.frequencies.min_coherence, axis=0)]
+    q = (np.log(np.abs(Ha / Hb)) ** 2 / (va + vb))[keep][:, band]
+    stats["split"].append(float(q.mean()))
+    return [f"  halves of the record against each other over the band: mean "
+            f"(ln|Ha/Hb|)^2 / (var_a + var_b) {q.mean():.2f} ({q.size} points)"]
+
+
+def report(folder, split=False, stats=None):
     truth = json.load(open(os.path.join(folder, "truth.json")))
     if truth.get("effects"):
         return f"{folder}: has effects, skipped (the truth system then differs from the case's model)"
@@ -134,14 +189,32 @@ def report(folder):
     lines.append(f"  local error / sigma, median: anti-resonance tenth {np.median(ratio[lo]):.2f}, "
                  f"peak tenth {np.median(ratio[hi]):.2f}, between {np.median(ratio[~lo & ~hi]):.2f}")
     lines += bias_lines(truth, case, cfg, Ht, keep, fit)
+    stats = stats if stats is not None else {"truth": [], "split": []}
+    if case.target.kernel:
+        lines += kernel_lines(truth, case, keep, fit, stats)
+        if split and case.records is not None and "__input__" in case.records.data:
+            lines += split_lines(case, cfg, keep, stats)
     return "\n".join(lines)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("cases", nargs="+", help="blind benchmark case folders (null or ordinary)")
-    for folder in ap.parse_args().cases:
-        print(report(folder), flush=True)
+    ap.add_argument("--split", action="store_true",
+                    help="also check a Welch case's noise model on the two halves of its record")
+    a = ap.parse_args()
+    stats = {"truth": [], "split": []}
+    for folder in a.cases:
+        print(report(folder, a.split, stats), flush=True)
+    v = np.array(stats["truth"])
+    if v.size > 1:
+        print(f"{v.size} cases, fitted points against the truth through the window: mean z^2 "
+              f"{v.mean():.3f}, SD {v.std(ddof=1):.3f}, range {v.min():.2f}-{v.max():.2f}, "
+              f"{int(np.sum((v < 0.8) | (v > 1.3)))} outside 0.8-1.3")
+    w = np.array(stats["split"])
+    if w.size > 1 and w.size == v.size:
+        print(f"  halves of the records: mean {w.mean():.3f}; correlation with the above "
+              f"{np.corrcoef(v, w)[0, 1]:+.2f}")
 
 
 if __name__ == "__main__":
