@@ -10,7 +10,10 @@ passive chain-like structure has, so they hold whatever the parameter values:
   resonance the quadrature part Im(A_c) of every channel's accelerance has one
   sign: positive for a force input (A = -w^2 phi_c phi_p / (2j zeta w_1^2 m)),
   negative for ground input (relative response -Gamma phi_c / (...)). A channel
-  with the other sign reads with the opposite sign (a phase offset of pi).
+  with the other sign reads with the opposite sign (a phase offset of pi). The
+  lowest resonance found counts as the first mode only when it lies nearer the
+  nominal model's mode 1 than its mode 2; otherwise (the first mode outside the
+  coherent band) this check and the channel-order check are skipped, with a warning.
 * **Driving point (force input).** A collocated accelerance is positive-real
   times jw: Im(A_pp) >= 0 at every frequency, and poles and zeros alternate
   (one anti-resonance between consecutive resonances). A transfer FRF changes
@@ -161,6 +164,21 @@ def _model_shapes(case, floors, n_modes):
     return np.array([V[fl - 1] if fl > 0 else np.zeros(V.shape[1]) for fl in floors])
 
 
+def _first_is_mode_one(case, f_first):
+    """Is the lowest resonance found the structure's first mode? It is taken so when it
+    lies nearer (in log frequency) the nominal model's mode 1 than its mode 2: the checks
+    that rest on the first mode (every floor in phase) are meaningless at mode 2, where
+    the upper floors move against the lower ones. Blind 84960/18, a force at floor 2 with
+    a story 1-2 damper: the coherence of two channels fell below 0.5 around mode 1
+    (1.0 Hz), the coherent band began above it, and the in-phase test read mode 2
+    (2.54 Hz) as three sign-flipped channels."""
+    w2 = linalg.eigh(case.model.K0, case.model.M0, eigvals_only=True)
+    f_nom = np.sqrt(np.clip(np.sort(w2), 0.0, None)) / (2 * np.pi)
+    if f_nom.size < 2 or f_nom[0] <= 0:
+        return True, f_nom
+    return bool(f_first < np.sqrt(f_nom[0] * f_nom[1])), f_nom
+
+
 def _first_mode_disorder(case, Q, sig, floors, pair):
     """True when, as labelled, the lower floor of the pair moves more than the upper
     one in the first mode: impossible in a shear chain, whose lowest mode grows with
@@ -231,8 +249,17 @@ def screen(case):
     if peaks.size >= 1:
         Q, sig = _quadrature(D, peaks)
         expected = 1.0 if ex == "force" else -1.0
+        mode_one, f_nom = _first_is_mode_one(case, case.f[peaks[0]])
         flipped, all_flipped = first_mode_signs(Q, sig, expected)
         checks["first_mode_quadrature_sign"] = dict(zip(names, np.sign(Q[:, 0]).tolist()))
+        if not mode_one:
+            warnings.append({"kind": "first_mode_unseen",
+                             "message": f"the lowest resonance in the coherent band "
+                                        f"({case.f[peaks[0]]:.3g} Hz) lies nearer the nominal "
+                                        f"model's mode 2 ({f_nom[1]:.3g} Hz) than its mode 1 "
+                                        f"({f_nom[0]:.3g} Hz): the sign and channel-order checks, "
+                                        "which need the first mode, were skipped"})
+            flipped, all_flipped = np.array([], int), False
         if all_flipped:
             w = {"kind": "phase_convention",
                  "message": "every channel has the opposite phase at the first resonance: the "
@@ -255,7 +282,7 @@ def screen(case):
             base, (best, pair) = swap_test(Phi, Q, floors)
             checks["shape_mac"] = {"as_labelled": base, "best_exchange": best,
                                    "exchange": [names[c] for c in pair] if pair else None}
-            if (pair and best >= base + MAC_GAIN and best >= MAC_GOOD
+            if (pair and mode_one and best >= base + MAC_GAIN and best >= MAC_GOOD
                     and _first_mode_disorder(case, Q, sig, floors, pair)):
                 swap = pair
                 a, b = pair

@@ -71,7 +71,7 @@ def _frfs(excitation, f, force_floor=1):
     return A + 1.0 if excitation == "ground" else A
 
 
-def _case(tmp_path, H, f, excitation, name):
+def _case(tmp_path, H, f, excitation, name, fmin=0.5):
     rng = np.random.default_rng(3)
     H = H * np.exp(0.01 * rng.standard_normal(H.shape) + 0.01j * rng.standard_normal(H.shape))
     folder = tmp_path / name
@@ -86,7 +86,7 @@ def _case(tmp_path, H, f, excitation, name):
            "excitation": {"type": "ground"} if excitation == "ground" else {"type": "force", "floor": 1},
            "data": {"file": "frf.npz", "channels": [
                {"name": f"a{i + 1}", "floor": i + 1, "output": out, "column": i} for i in range(4)]},
-           "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.5, "fmax": 8.0}}
+           "frequencies": {"method": "half_power", "k": 2.0, "fmin": fmin, "fmax": 8.0}}
     (folder / "case.yaml").write_text(yaml.safe_dump(cfg))
     return screen(assemble(load_case(str(folder / "case.yaml"))))
 
@@ -119,6 +119,27 @@ def test_swapped_channels_are_named(tmp_path, excitation, pair):
     errs = _case(tmp_path, H, F, excitation, "swap")["setup_errors"]
     assert [e["kind"] for e in errs] == ["swapped_channels"]
     assert sorted(errs[0]["channels"]) == [f"a{a + 1}", f"a{b + 1}"]
+
+
+@pytest.mark.parametrize("excitation", ["ground", "force"])
+def test_a_band_that_starts_above_the_first_mode_claims_no_sign_flip(tmp_path, excitation):
+    """With the first mode outside the (coherent) band, the lowest resonance found is
+    mode 2, where the upper floors move against the lower ones: its quadrature signs are
+    mixed, which the in-phase test would read as flipped channels. The checks that need
+    the first mode are skipped and said to be (blind 84960/18)."""
+    w2 = np.sort(np.linalg.eigvals(np.linalg.solve(np.diag(MASSES), shear_K(STORIES))).real)
+    f1, f2 = np.sqrt(w2[:2]) / (2 * np.pi)
+    H = _frfs(excitation, F)
+    rep = _case(tmp_path, H, F, excitation, "above", fmin=float(round(0.5 * (f1 + f2), 2)))
+    signs = rep["checks"]["first_mode_quadrature_sign"]
+    assert abs(rep["checks"]["resonances_hz"][0] - f2) < 0.1 * f2
+    assert len(set(signs.values())) == 2          # mode 2: the floors are not in phase
+    assert rep["setup_errors"] == []
+    assert [w["kind"] for w in rep["warnings"]].count("first_mode_unseen") == 1
+    # the same band from below the first mode still names a flipped channel
+    H[2] = -H[2]
+    errs = _case(tmp_path, H, F, excitation, "below")["setup_errors"]
+    assert [(e["kind"], e["channel"]) for e in errs] == [("sign_flip", "a3")]
 
 
 def test_force_at_another_floor_is_named(tmp_path):
