@@ -250,7 +250,8 @@ def screen(case):
         Q, sig = _quadrature(D, peaks)
         expected = 1.0 if ex == "force" else -1.0
         mode_one, f_nom = _first_is_mode_one(case, case.f[peaks[0]])
-        flipped, all_flipped = first_mode_signs(Q, sig, expected)
+        flipped, all_flipped = first_mode_signs(Q, sig, expected) if mode_one else \
+            (np.array([], int), False)
         checks["first_mode_quadrature_sign"] = dict(zip(names, np.sign(Q[:, 0]).tolist()))
         if not mode_one:
             warnings.append({"kind": "first_mode_unseen",
@@ -259,7 +260,6 @@ def screen(case):
                                         f"model's mode 2 ({f_nom[1]:.3g} Hz) than its mode 1 "
                                         f"({f_nom[0]:.3g} Hz): the sign and channel-order checks, "
                                         "which need the first mode, were skipped"})
-            flipped, all_flipped = np.array([], int), False
         if all_flipped:
             w = {"kind": "phase_convention",
                  "message": "every channel has the opposite phase at the first resonance: the "
