@@ -252,7 +252,7 @@ def _score(case, target, current, z_cur, enrichment):
     return _score_at(pr, _at(pr, z_cur, null), len(enrichment.names))
 
 
-def _scan_secondary(case, target, current, z_cur, n_grid=48):
+def _scan_secondary(case, target, current, z_cur, n_grid=48, resonances=()):
     """Appendage candidates per floor from the score of a tiny oscillator scanned over
     the fitted band (its frequency is a nuisance parameter, undefined under the null).
 
@@ -261,7 +261,8 @@ def _scan_secondary(case, target, current, z_cur, n_grid=48):
     resonance, the best frequency away from all of them is a second candidate of that
     floor, refitted from there (blind 146094/12 and 408154/12: the best at 1.50 and
     1.79 Hz, next to the first mode; the refits from there failed, those from the true
-    8.89 and 4.04 Hz halved the held-out misfit).
+    8.89 and 4.04 Hz halved the held-out misfit). Each candidate's refit also starts at
+    the resonances the current model lacks (``resonances``, Hz; SecondaryOscillator.starts).
     """
     f_sel = case.f[case.selected]
     grid = np.geomspace(0.8 * f_sel.min(), 1.1 * f_sel.max(), n_grid)
@@ -276,10 +277,10 @@ def _scan_secondary(case, target, current, z_cur, n_grid=48):
         scores = [_score_at(pr, _at(pr, z_cur, [1e-4, f0, 0.02]), 3) for f0 in grid]
         values = np.array([sc for sc, _ in scores])
         best = int(np.argmax(values))
-        out.append((SecondaryOscillator(floor, float(grid[best])), scores[best]))
+        out.append((SecondaryOscillator(floor, float(grid[best]), resonances), scores[best]))
         if near[best] and not near.all():
             off = int(np.argmax(np.where(near, -np.inf, values)))
-            out.append((SecondaryOscillator(floor, float(grid[off])), scores[off]))
+            out.append((SecondaryOscillator(floor, float(grid[off]), resonances), scores[off]))
     return out
 
 
@@ -919,7 +920,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
             break
         pairs = [(e, _score(case, target, state["current"], state["z"], e))
                  for e in candidates(case) if not _same(e, state["current"])]
-        pairs += _scan_secondary(case, target, state["current"], state["z"])
+        pairs += _scan_secondary(case, target, state["current"], state["z"],
+                                 resonances=_unexplained(case, state["problem"], state["z"], fit))
         if rnd == 0:
             absorbed = [(e, kept) for e, (_, kept) in pairs if kept < ABSORBED]
         scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
@@ -1434,7 +1436,9 @@ def _whole_band(case, base, zb, improved, zi, fit):
         return np.log(np.abs(_detection_form(f, H, case.channels, ex)) + 1e-300)
 
     Lx = ln_det(case.H[:, idx])
-    sig = local_sigma(Lx)
+    from .noise import second_difference_factor
+    d2f = second_difference_factor(case.config.data.window)   # windowed estimates: bins correlate
+    sig = local_sigma(Lx, d2_factor=d2f)
     m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there
     if getattr(case, "noise", None) is not None:
         # nor where the route's own noise model says the estimate is noise
@@ -1448,13 +1452,19 @@ def _whole_band(case, base, zb, improved, zi, fit):
         for c in cells:
             c["channel"] = case.channels[c["channel"]].name
         maps[key] = cells
-    extra = extra_modes(f, Lx, La, sig, m)
+    extra = extra_modes(f, Lx, La, sig, m, d2_factor=d2f)
     for e in extra:
         e["channels"] = [case.channels[c].name for c in e["channels"]]
         e["strongest"] = case.channels[e["strongest"]].name
     used = m.any(axis=0)
     return {"band_hz": [float(f[used].min()), float(f[used].max())] if used.any() else None,
             "map": maps, "extra_modes": extra}
+
+
+def _unexplained(case, pr, z, fit):
+    """Frequencies [Hz] of the measured resonances that the model (pr at z) lacks."""
+    whole = _whole_band(case, pr, z, pr, z, fit)
+    return tuple(e["frequency_hz"] for e in whole["extra_modes"]) if whole else ()
 
 
 def _screen(case, out, log):

@@ -280,6 +280,42 @@ def _appendage(mu, se_mu, f_se, zeta, zeta_se):
             "chi2": 2000.0, "held_out": 1.0, "at_bound": False, "score": 600.0}
 
 
+def test_a_flexible_base_whose_mass_and_dashpot_the_data_leave_open_is_still_found():
+    """A flexible base is measured by its flexibility 1/k_b; its dashpot and its mass only
+    shape the base resonance (like an appendage's damping) and trade against the
+    stiffness, so an open c_base or m_base is reported as not determined and never
+    refuses it. The base is proven by its chi-square drop over phi (> 9), not by the
+    Wald error of 1/k_b: a drop of 1000 with 1/k_b within one error of zero is found,
+    a drop of 8 is not."""
+    lk = 5.0  # log10 of the stiffness; 10^-x flexibility with 0.01 decades of error
+
+    def base(se_m, se_c, se_k=0.01, chi2=2000.0):
+        return {"physics": "base_flexibility", "location": {},
+                "parameters": {"m_base": 2.0, "log10_kb": lk, "c_base": 3.0},
+                "uncertainty": {"m_base": se_m, "log10_kb": se_k, "c_base": se_c},
+                "chi2": chi2, "held_out": 1.0, "at_bound": False, "score": 600.0}
+
+    open_c, open_m = base(0.1, 12.0), base(5.0, 0.5)
+    wald_weak, small_drop = base(0.1, 0.5, se_k=1.0), base(0.1, 0.5, chi2=2992.0)
+    _decide([open_c, open_m, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
+    assert open_c["accepted"] and open_m["accepted"] and wald_weak["accepted"]
+    assert _public(open_m)["not_determined"] == ["m_base"]
+    assert not small_drop["significant"] and "chi-square drop" in small_drop["why_not"]
+    pub = _public(open_c)
+    assert pub["not_determined"] == ["c_base"] and "c_base" not in pub["parameters"]
+
+
+def test_an_appendage_refit_also_starts_at_each_unexplained_resonance():
+    """The extra modes of the whole band are starts of the appendage refit when they lie
+    inside its frequency box and away from the scan's own start; they are not part of
+    the candidate's identity (same repr, equal candidates)."""
+    from nlp.physics import SecondaryOscillator
+    e = SecondaryOscillator(1, 8.17, resonances=(9.52, 30.0, 8.2, 3.0))
+    assert e.starts({}) == [[0.01, 9.52, 0.02]]
+    assert e == SecondaryOscillator(1, 8.17) and repr(e) == repr(SecondaryOscillator(1, 8.17))
+    assert SecondaryOscillator(1, 8.17).starts({}) == []
+
+
 def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
     """The appendage's mass ratio is 10 standard errors from zero; its damping ratio
     is not determined (its own resonance lies between the fitted windows). The
@@ -369,6 +405,29 @@ def test_extra_mode_found_with_its_channels_and_nothing_else():
     H_same = _accelerance(M, C, K, 1, rng, noise=0.01)
     Lx = np.log(np.abs(H_same))
     assert extra_modes(F, Lx, La, local_sigma(Lx), np.ones_like(Lx, bool)) == []
+
+
+def test_local_sigma_of_a_windowed_estimate_counts_its_correlated_bins():
+    """Errors of a Hann-windowed Welch estimate: each average's cross-spectrum noise is a
+    product of two Hann-smoothed white spectra, so neighbouring bins correlate. The
+    local scatter read with the window's second-difference factor recovers the point
+    standard deviation (np.std of the errors themselves); read as independent bins it
+    understates it by sqrt(6 / 2.5) = 1.55."""
+    from nlp.diagnosis.band import local_sigma
+    from nlp.noise import second_difference_factor
+    rng = np.random.default_rng(3)
+    n, taps = 20000, np.array([-0.25, 0.5, -0.25])   # a Hann window in the frequency domain
+
+    def smoothed():
+        e = rng.normal(size=n + 2) + 1j * rng.normal(size=n + 2)
+        return np.convolve(e, taps, "valid")
+
+    u = sum(np.real(smoothed() * np.conj(smoothed())) for _ in range(8))
+    u = 0.01 * u / np.std(u)
+    hann = np.median(local_sigma(u[None], d2_factor=second_difference_factor("hann")))
+    white = np.median(local_sigma(u[None]))
+    assert abs(hann / 0.01 - 1) < 0.06
+    assert abs(0.01 / white - math.sqrt(6 / 2.5)) < 0.1
 
 
 def test_modal_share_of_a_story_dashpot():

@@ -20,19 +20,23 @@ NEAR_ANTI = 0.05           # within 5 % of a model anti-resonance: a shifted zer
 MAX_SCATTER = 0.3          # local scatter of ln|H| above this: no coherent data there
 
 
-def local_sigma(L, half=32):
+def local_sigma(L, half=32, d2_factor=6.0):
     """Local noise of ln|H| along frequency: robust scatter of second differences
-    (MAD x 1.4826 / sqrt(6): a second difference of white noise has variance 6
-    sigma^2) in a moving window of 2 half + 1 points, one value per point.
+    (MAD x 1.4826 / sqrt(d2_factor)) in a moving window of 2 half + 1 points, one
+    value per point.
 
-    L : (n_ch, n_f) ln|H|. The moving median ignores a narrow resonance, whose
-    second differences are large only over a few points.
+    L : (n_ch, n_f) ln|H|. d2_factor : variance of a second difference of the errors in
+    units of their point variance, 6 for independent bins, 2.5 for a Hann-windowed
+    estimate (nlp.noise.second_difference_factor): with correlated bins the second
+    differences understate the point noise, and a 5-sigma peak test read with 6 would
+    be a 3.2-sigma one. The moving median ignores a narrow resonance, whose second
+    differences are large only over a few points.
     """
     from scipy.ndimage import median_filter
     d2 = np.abs(np.diff(L, 2, axis=1))
     d2 = np.pad(d2, ((0, 0), (1, 1)), mode="edge")
     med = median_filter(d2, size=(1, 2 * half + 1), mode="nearest")
-    return np.maximum(1.4826 * med / np.sqrt(6), 1e-4)
+    return np.maximum(1.4826 * med / np.sqrt(d2_factor), 1e-4)
 
 
 def band_mask(f, coherence=None, fmin=None, min_coherence=None):
@@ -88,7 +92,7 @@ def _persists(r, i, size):
     return max(int(np.sum(dev >= size / 2)), int(np.sum(dev <= -size / 2))) >= 2
 
 
-def extra_modes(f, L_meas, L_model, sigma, mask):
+def extra_modes(f, L_meas, L_model, sigma, mask, d2_factor=6.0):
     """Resonances in the measurement that the model does not have.
 
     f : (n_f,) Hz; L_meas, L_model : (n_ch, n_f) ln|H| of each channel as an
@@ -96,7 +100,9 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
     points. A measured peak (prominence >= max(ln 1.2, PEAK_Z sigma)) is
     unexplained on a channel when the measurement exceeds the model there by more
     than max(ln 1.2, PEAK_Z sigma) and the model has no peak within 2 %. Peaks on
-    several channels within 2 % are one mode. Returns [{frequency_hz, channels
+    several channels within 2 % are one mode. A step or dip of a lightly damped mode
+    is read from second differences, whose noise is sqrt(d2_factor) sigma (local_sigma).
+    Returns [{frequency_hz, channels
     (indices), excess (ln ratio per channel)}], sorted by frequency.
     """
     mask = np.broadcast_to(mask, L_meas.shape)
@@ -124,7 +130,7 @@ def extra_modes(f, L_meas, L_model, sigma, mask):
         # two bins, or the mode's phase makes it cancel the rest of the response): a second
         # difference of ln|H| that the model does not have
         d2 = np.diff(lm, 2) - np.diff(L_model[c, idx], 2)
-        thr = np.maximum(MIN_EXCESS, PEAK_Z * np.sqrt(6.0) * sig[1:-1])
+        thr = np.maximum(MIN_EXCESS, PEAK_Z * np.sqrt(d2_factor) * sig[1:-1])
         sharp, _ = find_peaks(np.abs(d2), height=0.0, distance=5)
         apk, _ = find_peaks(-L_model[c, idx], prominence=0.1)
         f_anti = f[idx][apk]  # the model's anti-resonances: a shifted one is not a new mode
