@@ -284,6 +284,22 @@ def _scan_secondary(case, target, current, z_cur, n_grid=48, resonances=()):
     return out
 
 
+def _hot_appendages(case, target, current, z_cur, hot, resonances=()):
+    """Appendage candidates tuned to the largest misfits off the fitted points (Hz, from
+    band.hot_spots), one per floor that has none yet; they are refitted whatever their
+    score. The score test is a first-order look, and the scan's best frequency can land
+    next to a resonance (retired 501037/47: true 3.20 Hz at floor 3, scan 9.0 Hz)."""
+    out = []
+    for h in hot:
+        for floor in range(1, case.model.n + 1):
+            if any(e.family == "secondary_oscillator" and e.floor == floor for e in current):
+                continue
+            e = SecondaryOscillator(floor, float(h), resonances)
+            pr = _problem(case, target, current + [e], compile=False)
+            out.append((e, _score_at(pr, _at(pr, z_cur, [1e-4, h, 0.02]), 3)))
+    return out
+
+
 # --------------------------------------------------------------------- main
 def _bands(f_idx):
     """Contiguous groups of fitted points: one band per half-power window."""
@@ -862,7 +878,10 @@ def _windows(cfg, case, mult):
     return idx[case.f[idx] > 0]
 
 
-def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False):
+HOT_WINDOW = 0.06   # half-width (relative) of the window the widened look fits around a hot spot
+
+
+def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False, _hot=()):
     """Diagnose a case; writes out/diagnosis.json and figures; returns the dict.
 
     Forward selection: each round adds the best accepted candidate to the model
@@ -871,7 +890,9 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
     family is accepted and the held-out shoulders are not explained while the
     fitted windows are (or the shoulders' misfit is over 3x the windows'), the
     windows are widened 3x once and the search repeated (the effect lives off
-    the resonances, e.g. an appendage tuned between two modes). Then: effects
+    the resonances, e.g. an appendage tuned between two modes); the widened look also
+    fits a window around each of the baseline's largest misfits off the windows
+    (band.hot_spots), and refits an appendage tuned there on every floor. Then: effects
     inside the model class (priors, damping decomposition), sensor delays from
     the phase, agreement with the case's other tests, and the whole measured band.
     """
@@ -880,7 +901,16 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
     if screening is not None and screening["verdict"] == "setup_error":
         return screening
     fit = _windows(cfg, case, widen)
-    held = np.setdiff1d(_windows(cfg, case, 3 * widen), fit)
+    held = _windows(cfg, case, 3 * widen)
+    if _hot:
+        # the fit only sees its windows: an effect between the resonances must be in them
+        near = [np.flatnonzero(np.abs(case.f / h - 1.0) <= w * HOT_WINDOW)
+                for h in _hot for w in (1, 3)]
+        fit = np.union1d(fit, np.concatenate(near[0::2]))
+        held = np.union1d(held, np.concatenate(near[1::2]))
+        log("also fitting the largest misfits off the windows: "
+            + ", ".join(f"{h:.3g} Hz +- {100 * HOT_WINDOW:.0f} %" for h in _hot))
+    held = np.setdiff1d(held, fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)
     base = _problem(case, target)
@@ -920,12 +950,17 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
             break
         pairs = [(e, _score(case, target, state["current"], state["z"], e))
                  for e in candidates(case) if not _same(e, state["current"])]
+        extra = _unexplained(case, state["problem"], state["z"], fit)[0]
         pairs += _scan_secondary(case, target, state["current"], state["z"],
-                                 resonances=_unexplained(case, state["problem"], state["z"], fit))
+                                 resonances=extra + tuple(_hot))
         if rnd == 0:
             absorbed = [(e, kept) for e, (_, kept) in pairs if kept < ABSORBED]
-        scored = sorted(((sc, e) for e, (sc, _) in pairs), key=lambda t: -t[0])
+        at_hot = _hot_appendages(case, target, state["current"], state["z"], _hot,
+                                 extra + tuple(_hot))
+        scored = sorted(((sc, e) for e, (sc, _) in pairs + at_hot), key=lambda t: -t[0])
         jobs = _to_refit(scored, top)
+        have = {repr(e) for _, e in jobs}
+        jobs += [(sc, e) for e, (sc, _) in at_hot if repr(e) not in have]
         if others:
             jobs = _refits_of_others(others, state, jobs, {repr(e): sc for sc, e in scored}, top)
         results = _refit_all([(case, target, state["current"], state["z"], e, sc, n_fit, held,
@@ -992,7 +1027,8 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False)
             and not _adequate(chi_b, nu, held_b)):
         log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
-        return diagnose(cfg, out, log, top, max_findings, widen=3, _nonlin=nonlin)
+        hot = _unexplained(case, base, b_res.z, fit)[1]
+        return diagnose(cfg, out, log, top, max_findings, widen=3, _nonlin=nonlin, _hot=hot)
     if level_bound:   # a linear fit that far off says nothing about priors, dampers, phase
         inside = {"findings": [], "parameter_changes": [], "damping": None, "absorbed": [],
                   "parameters": []}
@@ -1418,7 +1454,8 @@ def _hold_on_others(others, state, accepted, log):
 def _whole_band(case, base, zb, improved, zi, fit):
     """Residual map over every coherently measured frequency and the extra modes."""
     from .case import _detection_form
-    from .diagnosis.band import MAX_SCATTER, band_map, band_mask, extra_modes, local_sigma
+    from .diagnosis.band import (MAX_SCATTER, band_map, band_mask, extra_modes, hot_spots,
+                                 local_sigma)
     fc = case.config.frequencies
     mask = band_mask(case.f, case.coherence, fc.fmin, fc.min_coherence)
     rec = getattr(case, "records", None)
@@ -1458,13 +1495,16 @@ def _whole_band(case, base, zb, improved, zi, fit):
         e["strongest"] = case.channels[e["strongest"]].name
     used = m.any(axis=0)
     return {"band_hz": [float(f[used].min()), float(f[used].max())] if used.any() else None,
-            "map": maps, "extra_modes": extra}
+            "map": maps, "extra_modes": extra, "hot_spots_hz": hot_spots(f, r, m, fit_local)}
 
 
 def _unexplained(case, pr, z, fit):
-    """Frequencies [Hz] of the measured resonances that the model (pr at z) lacks."""
+    """Frequencies [Hz] the model (pr at z) does not explain: the measured resonances it
+    lacks, and the largest misfits off the fitted points (band.hot_spots)."""
     whole = _whole_band(case, pr, z, pr, z, fit)
-    return tuple(e["frequency_hz"] for e in whole["extra_modes"]) if whole else ()
+    if not whole:
+        return (), ()
+    return tuple(e["frequency_hz"] for e in whole["extra_modes"]), tuple(whole["hot_spots_hz"])
 
 
 def _screen(case, out, log):

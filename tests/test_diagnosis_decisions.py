@@ -407,6 +407,38 @@ def test_extra_mode_found_with_its_channels_and_nothing_else():
     assert extra_modes(F, Lx, La, local_sigma(Lx), np.ones_like(Lx, bool)) == []
 
 
+def test_hot_spot_of_an_appendage_between_two_modes():
+    """A 3-storey frame 'measured' with a 5 % appendage on floor 3 tuned to 3.2 Hz, between
+    its first two modes (1.70 and 4.66 Hz); the model is the frame alone, and the points
+    within 4 % of its modes are the fitted ones. The largest misfit off them lies at the
+    appendage (within 15 %: the residual peaks on the resonance-antiresonance pair it
+    makes); the frame measured with noise has none; fitted points are never one."""
+    from nlp.diagnosis.band import hot_spots
+    rng = np.random.default_rng(5)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k, zeta=0.02)
+    fn = np.sqrt(eigh(K, M, eigvals_only=True)) / (2 * np.pi)
+    H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
+    ms, fs = 0.25, 3.2
+    ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * 0.02 * ms * 2 * np.pi * fs
+    Ma, Ka, Ca = np.diag([5.0, 5.0, 5.0, ms]), np.zeros((4, 4)), np.zeros((4, 4))
+    Ka[:3, :3], Ca[:3, :3] = K, C
+    for A, v in ((Ka, ks), (Ca, cs)):
+        A[2, 2] += v
+        A[2, 3] = A[3, 2] = -v
+        A[3, 3] = v
+    sigma = 0.01                               # 1 % complex noise: ln|H| scatter 0.01
+    H_meas = _accelerance(Ma, Ca, Ka, 1, rng, noise=sigma)[:3]
+    r = (np.log(np.abs(H_meas)) - np.log(np.abs(H_model))) / sigma
+    fitted = np.flatnonzero(np.any([np.abs(F / f - 1) <= 0.04 for f in fn], axis=0))
+    hot = hot_spots(F, r, np.ones_like(r, bool), fitted)
+    assert hot and abs(hot[0] / fs - 1) < 0.15, hot
+    assert all(np.min(np.abs(F[fitted] - h)) > 0 for h in hot)
+    H_same = _accelerance(M, C, K, 1, rng, noise=sigma)
+    r0 = (np.log(np.abs(H_same)) - np.log(np.abs(H_model))) / sigma
+    assert hot_spots(F, r0, np.ones_like(r0, bool), fitted) == []
+
+
 def test_local_sigma_of_a_windowed_estimate_counts_its_correlated_bins():
     """Errors of a Hann-windowed Welch estimate: each average's cross-spectrum noise is a
     product of two Hann-smoothed white spectra, so neighbouring bins correlate. The
@@ -492,10 +524,11 @@ class _DampedFrame:
         return self.M, self.K, C
 
 
-def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
+def test_no_damper_claimed_next_to_a_story_dashpot_pinned_at_zero():
     """Story 2 carries a dashpot far beyond the others' share. With stories 1 and 3 damped
-    it is a concentrated damper; with story 1's dashpot at zero the others' share is not
-    determined (the non-negative decomposition is on its bound) and nothing is claimed."""
+    it is a concentrated damper; with story 1's dashpot at zero (the non-negative
+    decomposition on its bound) story 2 may carry story 1's damping, and nothing is
+    claimed."""
     from nlp.diagnosis.priors import damper_check
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     pr = _DampedFrame(m, k)
@@ -506,6 +539,22 @@ def test_no_damper_claimed_while_another_story_dashpot_is_pinned_at_zero():
     z_pinned = np.array([0.1, 0.0, 15.0, 2.6])
     info, flagged = damper_check(pr, z_pinned, cov)
     assert flagged == [] and info["pinned_stories"] == [1]
+
+
+def test_damper_away_from_a_pinned_story_is_claimed_against_the_unpinned_stories():
+    """Four stories, story 1 pinned at zero and story 3 far above the others: the damper is
+    claimed, and its share is measured against stories 2 and 4 only (the pinned zero would
+    halve the median c / k and double the ratio)."""
+    from nlp.diagnosis.priors import damper_check
+    m, k = np.array([5.0, 5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0, 2400.0])
+    pr = _DampedFrame(m, k)
+    cov = np.diag(np.full(5, 1e-6))
+    c = np.array([0.0, 2.8, 20.0, 3.6])          # c/k: 0, 1e-3, 7.7e-3, 1.5e-3
+    info, flagged = damper_check(pr, np.concatenate([[0.1], c]), cov)
+    assert info["pinned_stories"] == [1] and [d["story"] for d in flagged] == [3]
+    ref = np.median([2.8 / 2800.0, 3.6 / 2400.0])
+    assert flagged[0]["ratio"] == pytest.approx(20.0 / 2600.0 / ref, rel=1e-9)
+    assert flagged[0]["excess"] == pytest.approx(20.0 - ref * 2600.0, rel=1e-9)
 
 
 def test_story_damping_ratio_by_hand():
