@@ -49,7 +49,8 @@ from scipy.ndimage import uniform_filter1d
 __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
            "var_ln_transient", "kernel_moment", "smoothing_taps", "estimator_kernel",
            "resolution_bias", "rest_mask",
-           "rest_noise_psd", "local_scatter", "second_difference_factor", "VAR_LN_MAX"]
+           "rest_noise_psd", "local_scatter", "spaced_scatter", "correlation_lag",
+           "second_difference_factor", "VAR_LN_MAX"]
 
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
 VAR_LN_MAX = math.pi ** 2 / 24
@@ -378,22 +379,83 @@ def local_scatter(f, H, half_width=25, window=None):
     sigma_ln, sigma_phase : ndarrays, shape (n_ch, n_f)
     """
     H = np.atleast_2d(np.asarray(H, complex))
+    lnH = _ln_unwrapped(H)
+    d2 = lnH[:, 2:] - 2 * lnH[:, 1:-1] + lnH[:, :-2]
+    return _robust_levels(d2, H.shape[1], 1, half_width, second_difference_factor(window))
+
+
+def _ln_unwrapped(H):
+    """ln H with the phase unwrapped along frequency (zeros read as 1e-300)."""
     with np.errstate(divide="ignore"):
         lnH = np.log(np.where(H == 0, 1e-300, H))
-    lnH = lnH.real + 1j * np.unwrap(lnH.imag, axis=1)
-    root = math.sqrt(second_difference_factor(window))
-    d2 = lnH[:, 2:] - 2 * lnH[:, 1:-1] + lnH[:, :-2]
+    return lnH.real + 1j * np.unwrap(lnH.imag, axis=1)
+
+
+def _robust_levels(d, n, shift, half_width, factor):
+    """Point std behind differences d (n_ch, n - 2 shift) of variance factor x s^2:
+    1.4826 x the median absolute deviation over 2 half_width + 1 differences around
+    each of the n points, for the real and the imaginary part."""
+    root = math.sqrt(factor)
     out = []
-    for part in (d2.real, d2.imag):
-        s = np.empty((H.shape[0], H.shape[1]))
-        n2 = part.shape[1]
-        for k in range(H.shape[1]):
-            j = min(max(k - 1, 0), n2 - 1)
+    for part in (d.real, d.imag):
+        s = np.empty((d.shape[0], n))
+        for k in range(n):
+            j = min(max(k - shift, 0), part.shape[1] - 1)   # the difference centred on k
             seg = part[:, max(j - half_width, 0):j + half_width + 1]
             med = np.median(seg, axis=1, keepdims=True)
             s[:, k] = 1.4826 * np.median(np.abs(seg - med), axis=1) / root
         out.append(np.maximum(s, _FLOOR))
     return out[0], out[1]
+
+
+def correlation_lag(window=None, tol=1e-3):
+    """Smallest bin lag beyond which a ``window``'s spectral estimate has uncorrelated
+    bins: 1 + the largest l with |c_l| > tol (c_l as in :func:`second_difference_factor`).
+    1 for independent bins (None, ``"none"``, ``"boxcar"``); 3 for Hann and Hamming
+    (w^2 holds cosines up to 2 x the fundamental)."""
+    if window is None or window in ("none", "boxcar"):
+        return 1
+    from scipy.signal import get_window
+    N = 4096
+    w2 = get_window(window, N) ** 2
+    c = np.abs(np.fft.fft(w2)) / np.sum(w2)
+    big = np.flatnonzero(c[1:N // 2] > tol)
+    return int(big.max()) + 2 if big.size else 1
+
+
+def spaced_scatter(f, H, half_width=25, window=None):
+    """Std of ln|H| and arg H from third differences of bins ``lag`` apart
+    (:func:`correlation_lag` of the window: 3 for Hann).
+
+    The four terms of a third difference at that spacing are uncorrelated whatever
+    the correlation of neighbouring bins, so it has variance 20 s^2 for noise and for
+    leakage alike, and it removes the quadratic part of a peak. Near the peaks of a
+    windowed average the error is mostly leakage of the response that outlasts a
+    segment: a smooth term times one windowed spectrum, whose neighbouring bins
+    correlate like the window's DFT itself (c_1 = -2/3 for Hann) rather than like
+    noise (|c_1|^2 = 4/9). Adjacent second differences read that 2.2 x too large, and
+    the robust level over 51 bins carries it into the shoulders, where the fit lives.
+    Measured against the true FRF on 11 blind null FRF files without coherence (Hann,
+    4096-point segments, 1-2.7 bins per half-power bandwidth; 3 retired held-back
+    seeds, 8 development seeds), mean z^2 on the fitted windows, with the resolution
+    bias added as in :func:`noise_model`, was 0.55-1.14 with :func:`local_scatter`
+    and 0.83-1.30 with this. The leakage scatter of the peak bins themselves is not
+    seen by either (a level over 51 bins).
+
+    Returns
+    -------
+    sigma_ln, sigma_phase : ndarrays, shape (n_ch, n_f)
+    """
+    H = np.atleast_2d(np.asarray(H, complex))
+    lnH = _ln_unwrapped(H)
+    lag = correlation_lag(window)
+    g = np.array([-1.0, 3.0, -3.0, 1.0])
+    span = 3 * lag
+    n = H.shape[1]
+    if n <= span + 2:
+        return local_scatter(f, H, half_width, window)
+    d3 = sum(g[j] * lnH[:, j * lag:n - span + j * lag] for j in range(4))
+    return _robust_levels(d3, n, span // 2, half_width, float(np.sum(g ** 2)))
 
 
 # ------------------------------------------------------------------ routes
@@ -487,7 +549,7 @@ def noise_model(case):
             # the model carries the window's kernel, so the bias is not an error of the fit
             s = np.maximum(np.sqrt(np.minimum(var, VAR_LN_MAX)), _FLOOR)
             return NoiseModel(s, s.copy(), "frf_coherence", n_eff, sigma_detect=s_det)
-    s, sp = local_scatter(case.f, case.H, window=case.config.data.window)
+    s, sp = spaced_scatter(case.f, case.H, window=case.config.data.window)
     if np.ndim(bias2):
         # the bias is read from second differences of the noisy estimate, which carry
         # (m2/2)^2 x second_difference_factor x s^2 of the noise itself: counted once
