@@ -25,7 +25,7 @@ import re
 import numpy as np
 from scipy.optimize import nnls
 
-__all__ = ["PRIOR_OUT", "DAMPER_RATIO", "STORY_ZETA", "prior_sigmas", "prior_check",
+__all__ = ["PRIOR_OUT", "DAMPER_RATIO", "STORY_ZETA", "DAMPER_SE", "prior_sigmas", "prior_check",
            "story_patterns", "decompose_damping", "damper_check", "modal_share",
            "story_damping_ratio"]
 
@@ -38,9 +38,16 @@ STORY_ZETA = 1.85    # its excess dashpot, as the damping ratio of its story (c 
                      # 3-storey frames; measured against the median with the damper in (1.35x):
                      # 2.1-2.4 %, 69-70 % (95-96 %), 47-48 % (true matrices, seeds 2 and 3 of
                      # python scripts/damper_threshold.py)
-DETERMINED = 6.0     # ... and its excess is this many standard errors from zero (the n story
-                     # dashpots of a weakly identified general C: on blind seed 24798 the claims
-                     # at 3.2-5.3 SE were wrong 3 of 3, the right one stood at 39 SE)
+DETERMINED = 6.0     # a parameter outside its prior must also stand this many SE from nominal
+DAMPER_SE = 3.0      # ... and a damper's excess this many from zero. It was DETERMINED (6)
+                     # until seed 482662, from blind seed 24798, where the code of the time
+                     # claimed dampers at 3.2-5.3 SE wrongly 3 of 3 (the n story dashpots of
+                     # a weakly identified general C). Those three cases, regenerated and
+                     # rerun at 49e46be, are refused by the zeta test (ratio 0.88 and 1.07 one
+                     # SE low) or the structured refit at any number of SEs.
+                     # Replayed on the stored decompositions of five retired seeds (~325
+                     # cases): 3 adds two right stories (482662/19 at 3.1 SE, /46 at 5.0)
+                     # and no wrong one
 MAX_UNEXPLAINED = 0.3  # a C this far from M + story patterns is not decomposed into dampers
 
 
@@ -196,7 +203,7 @@ def damper_check(problem, z, cov_z):
                  "modal_share_lower": share_lo.tolist()})
     flagged = []
     for s in range(n):
-        if (left < MAX_UNEXPLAINED and ref[s] > 0 and ex[s] > DETERMINED * se[s]
+        if (left < MAX_UNEXPLAINED and ref[s] > 0 and ex[s] > DAMPER_SE * se[s]
                 and not pinned[max(s - 1, 0):s + 2].any()
                 and rho_lo[s] > DAMPER_RATIO * ref[s] and zeta_lo[s] > STORY_ZETA):
             flagged.append({"story": s + 1, "excess": float(ex[s]), "standard_error": float(se[s]),
