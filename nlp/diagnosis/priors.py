@@ -45,9 +45,9 @@ DAMPER_SE = 3.0      # ... and a damper's excess this many from zero. It was DET
                      # a weakly identified general C). Those three cases, regenerated and
                      # rerun at 49e46be, are refused by the zeta test (ratio 0.88 and 1.07 one
                      # SE low) or the structured refit at any number of SEs.
-                     # Replayed on the stored decompositions of five retired seeds (~325
-                     # cases): 3 adds two right stories (482662/19 at 3.1 SE, /46 at 5.0)
-                     # and no wrong one
+                     # Replayed on 229 stored decompositions of five retired seeds
+                     # (scripts/replay_damper_rule.py): 3 adds two right stories (482662/19
+                     # at 3.1 SE, /46 at 5.0) and no wrong one
 MAX_UNEXPLAINED = 0.3  # a C this far from M + story patterns is not decomposed into dampers
 
 
