@@ -40,7 +40,8 @@ from .problem import SolverConfig, Target, UpdatingProblem
 from .provenance import provenance
 from .search import SearchConfig, scatter_search
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
-                                 effect_terms, evidence, held_out_excess, quasi_covariance,
+                                 effect_terms, evidence, held_out_excess, held_out_ok,
+                                 quasi_covariance,
                                  scaled_delta_bic, significance, tied, undetermined)
 
 __all__ = ["diagnose", "noise_sigma", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
@@ -507,7 +508,7 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
         # -7.7 N/m, 0.25 % of a story, at dBIC -2.4 "halved" it, 2.99 -> 1.15; on the 325
         # retired cases kept, that rule accepted nothing else)
         r["accepted"] = not r["at_bound"] and ok and (
-            r["delta_bic"] <= -BIC_ACCEPT and r["held_out"] <= HELD_OUT_GAIN * ref_held)
+            r["delta_bic"] <= -BIC_ACCEPT and held_out_ok(r["held_out"], ref_held, r["physics"]))
     held_out_excess(results, n_held)
     return phi
 
@@ -521,7 +522,7 @@ def _better_unresolved(results, best, ref_held):
     out = []
     for r in results:
         if (r.get("unresolved") and not r["at_bound"] and r["delta_bic"] <= -BIC_ACCEPT
-                and r["held_out"] <= HELD_OUT_GAIN * ref_held and evidence(r) < evidence(best)
+                and held_out_ok(r["held_out"], ref_held, r["physics"]) and evidence(r) < evidence(best)
                 and (r["physics"], repr(r["location"])) != (best["physics"], repr(best["location"]))):
             r["instead_of"] = _where(best)
             out.append(r)

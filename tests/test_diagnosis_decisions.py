@@ -18,8 +18,8 @@ from nlp.config import load_case
 from nlp.case import assemble
 from nlp.diagnose import (_classify, _decide, _normalised, _problem, _public, _repolish,
                           _target, _windows, diagnose, noise_sigma)
-from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, dispersion, evidence, held_out_excess,
-                                    scaled_delta_bic, tied)
+from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, dispersion, evidence,
+                                    held_out_excess, held_out_ok, scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
 
 F = np.arange(0.5, 16.0, 0.02)
@@ -216,6 +216,31 @@ def test_a_lower_held_out_error_alone_accepts_nothing():
     strong["held_out"] = 0.81 * 2.99      # the fit improves, the held-out points do not
     _decide([strong], ref_chi, 2.99, nu, n_fit)
     assert not strong["accepted"]
+
+
+def test_held_out_points_already_at_their_noise_need_only_not_get_worse():
+    """Retired 65424/48: a flexible base at dBIC -143.8 under a found added mass took the
+    held-out chi-square 1.08 -> 0.99. Shoulders fitted to their noise cannot fall another
+    20 %; there the candidate must only leave them no worse. Above HELD_OUT_FLOOR, and for
+    an appendage, the 20 % cut stays the rule."""
+    ref_chi, nu, n_fit = 1840.0, 1830, 1841
+    r = dict(_result("base_flexibility", {}, ref_chi - 160.0), held_out=0.99)
+    r["parameters"], r["uncertainty"] = {"log10_kb": 3.88}, {"log10_kb": 0.012}
+    _decide([r], ref_chi, 1.08, nu, n_fit)
+    assert r["delta_bic"] <= -BIC_ACCEPT and r["significant"] and r["accepted"]
+    r["held_out"] = 1.09                  # a hair worse on the points never fitted
+    _decide([r], ref_chi, 1.08, nu, n_fit)
+    assert not r["accepted"]
+    r["held_out"] = 0.81 * 1.6            # above the floor a 19 % cut is not enough
+    _decide([r], ref_chi, 1.6, nu, n_fit)
+    assert 1.6 > HELD_OUT_FLOOR and not r["accepted"]
+    assert held_out_ok(0.79 * 1.6, 1.6) and held_out_ok(1.3, 1.3) and not held_out_ok(1.31, 1.3)
+    # an appendage can put its resonance on any bin: it keeps the 20 % cut
+    a = dict(_result("secondary_oscillator", {"floor": 4}, ref_chi - 60.0, value=0.01,
+                     se=0.001), held_out=1.05)
+    _decide([a], ref_chi, 1.08, nu, n_fit)
+    assert a["delta_bic"] <= -BIC_ACCEPT and a["significant"] and not a["accepted"]
+    assert held_out_ok(0.8 * 1.08, 1.08, "secondary_oscillator")
 
 
 def test_held_out_points_tell_apart_candidates_that_fit_the_windows_alike():
