@@ -26,14 +26,16 @@ derived per point from the data themselves:
                With input noise H1 is biased low by ln(1 + S_nx/S_uu); when the
                rest portions give S_nx, that bias is added to the variance.
 ``frf_coherence``  an FRF file that carries its coherence (and the averages).
-               For both FRF-file routes, the resolution bias of the analyzer's window
-               (``data.window``, default Hann; ``none`` for an FRF that was not
-               estimated by windowed averaging) at the file's own resolution is
-               added, as for Welch: the scatter and the coherence cannot show it.
+               For both FRF-file routes, the model carries the kernel of the
+               analyzer's window (``data.window``, default Hann; ``none`` for an FRF
+               that was not estimated by windowed averaging) at the file's own
+               resolution (:func:`estimator_kernel`), as for Welch.
 ``scatter``    an FRF file without coherence, or records without a rest
                portion: the robust local scatter of second differences of
                ln H along frequency (Re: magnitude, Im: phase), in a sliding
-               window, so the level still follows the frequency.
+               window, so the level still follows the frequency. For an averaged
+               file, LEAKAGE_KEEP of the squared resolution bias is added for the
+               leakage scatter at sharp peaks, which a level over 51 bins misses.
 
 For a complex-circular error the magnitude and phase variances are equal; the
 model returns both.
@@ -55,6 +57,9 @@ __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_we
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
 VAR_LN_MAX = math.pi ** 2 / 24
 _FLOOR = 1e-4      # sigma floor (numerical resolution of a stored FRF)
+# share of the squared resolution bias kept as the leakage variance of an FRF file
+# without coherence whose model carries the window's kernel (noise_model)
+LEAKAGE_KEEP = 0.4
 
 
 @dataclass(frozen=True)
@@ -171,18 +176,20 @@ def estimator_kernel(cfg, f, records=None, coherence=None, n_averages=None):
     file's resolution; its coherence holds the scatter that the window's leakage adds
     at sharp peaks, so the three taps leave nothing the noise model misses (blind
     null files: coherence variance against the three-tap smoothed truth, mean z^2
-    0.76-1.22, the same as against the exact kernel). A file without them keeps its
-    resolution bias as an error of the noise model (its scatter, a robust level over
-    51 bins, cannot show the leakage scatter at a peak); so do windows without
-    finite kernel moments (rectangular) and ``window: none``.
+    0.76-1.22, the same as against the exact kernel). A file without coherence is an
+    analyzer's average as well (``data.window``; ``none`` when it is not): it carries
+    the kernel too, and the noise model keeps part of the resolution bias for the
+    leakage scatter that its scatter level cannot see (:func:`noise_model`). Windows
+    without finite kernel moments (rectangular) and ``window: none`` carry no kernel.
 
     coherence, n_averages : of a stored FRF file (None for time histories).
     """
     d = cfg.data
     f = np.asarray(f, float)
     from_records = records is not None and "__input__" in records.data
-    averaged_file = (not from_records and coherence is not None
-                     and float(n_averages or 1) > 1)
+    # a file with coherence states its averages (one: not an average); without, it is
+    # taken as an analyzer's average unless data.window says none
+    averaged_file = records is None and (coherence is None or float(n_averages or 1) > 1)
     if ((not from_records and not averaged_file) or d.nperseg == "all"
             or d.window in ("boxcar", "rectangular", "none") or f.size < 5):
         return None
@@ -564,7 +571,16 @@ def noise_model(case):
         # Measured at the true FRF, z^2 at the fitted points of three blind null files:
         # 0.99, 1.03, 1.77 bin by bin; 0.73, 0.83, 0.98 spread (0.55-0.76 over +-2 bins)
         bias2 = uniform_filter1d(bias2, size=3, axis=-1, mode="nearest")
-    return NoiseModel(np.sqrt(s ** 2 + bias2), np.sqrt(sp ** 2 + bias2), "scatter", 1.0)
+    if not getattr(case, "kernel", None):
+        return NoiseModel(np.sqrt(s ** 2 + bias2), np.sqrt(sp ** 2 + bias2), "scatter", 1.0)
+    # the model carries the window's kernel, so the bias itself is no error of the fit;
+    # the leakage scatter at a sharp peak is, and the scatter level (over 51 bins) does
+    # not see it. It scales with the same sharpness, so a share of bias^2 stands for it:
+    # 0.4 brings z^2 at the peak bins of scipy-filtered Hann averages to 0.95 (1 % and
+    # 2 % damping; tests/test_noise.py), where 0 gives 3.5 and 1 gives 0.53
+    lk = LEAKAGE_KEEP * bias2
+    return NoiseModel(np.sqrt(s ** 2 + lk), np.sqrt(sp ** 2 + lk), "scatter", 1.0,
+                      sigma_detect=np.sqrt(s ** 2 + bias2))
 
 
 def _file_resolution_bias2(f, H, window="hann"):

@@ -74,7 +74,7 @@ def case_yaml(f_sway):
         "parameters": {"stiffness_bounds": [-0.5, 1.0]},
         "damping": {"model": "rayleigh", "a0": float(a1 * w1 * w7), "a1": float(a1)},
         "excitation": {"type": "ground", "direction": "ux"},
-        "data": {"file": "frf.npz", "channels": [
+        "data": {"file": "frf.npz", "window": "none", "channels": [
             {"name": f"a{fl}", "node": 100 * fl, "dof": "ux", "output": "absolute_accelerance",
              "column": i} for i, fl in enumerate(SENSOR_FLOORS)]},
         "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.3, "fmax": 20.0},

@@ -115,7 +115,7 @@ def write_records(path, fs, x, y, names):
 
 # ------------------------------------------------------------------ null cases
 FS_FINE, DECIM = 1000.0, 10
-ROUTES = ("transient", "welch", "frf_scatter", "frf_coherence", "frf_welch")
+ROUTES = ("transient", "welch", "frf_scatter", "frf_coherence", "frf_welch", "frf_welch_bare")
 
 
 def case_yaml(folder, data, frequencies=None):
@@ -156,11 +156,12 @@ def null_case(route, folder, seed, frequencies=None):
     FRF file with 1-4 % relative complex noise; frf_coherence: .npz H1 of 30 averages
     with its coherence and n_averages, simulated per bin; frf_welch: the Welch route's
     records stored as an analyzer would, H1 (Hann, 4096 samples, half overlap) with its
-    coherence and number of averages, window left at its default.
+    coherence and number of averages, window left at its default; frf_welch_bare: the
+    same analyzer's average stored without its coherence and averages.
     """
     rng = np.random.default_rng(seed)
     M, C, K = frame()
-    if route == "frf_welch":
+    if route in ("frf_welch", "frf_welch_bare"):
         x, y = add_noise(*simulate(random_input(FS_FINE, 20.0, 300, rng), FS_FINE, M, C, K,
                                    decim=DECIM), 0.02, rng)
         fs = FS_FINE / DECIM
@@ -168,9 +169,11 @@ def null_case(route, folder, seed, frequencies=None):
         _, s_xy = signal.csd(x[None], y, fs, nperseg=4096)
         _, s_yy = signal.welch(y, fs, nperseg=4096)
         keep = (f >= 0.5) & (f <= 12.0)
+        stated = {} if route == "frf_welch_bare" else dict(
+            coherence=(np.abs(s_xy) ** 2 / (s_xx * s_yy))[:, keep],
+            n_averages=(x.size - 4096) // 2048 + 1)
         np.savez(os.path.join(str(folder), "frf.npz"), f=f[keep], H=(s_xy / s_xx)[:, keep],
-                 coherence=(np.abs(s_xy) ** 2 / (s_xx * s_yy))[:, keep],
-                 n_averages=(x.size - 4096) // 2048 + 1)
+                 **stated)
         chans = [{"name": f"a{i + 1}", "floor": i + 1, "output": "absolute_accelerance",
                   "column": i} for i in range(3)]
         return case_yaml(folder, {"file": "frf.npz", "channels": chans}, frequencies)

@@ -81,7 +81,10 @@ def score_case(name, truth, code, err, seconds, res, sizes):
             "verdict": res["verdict"] if res else None, "route": truth["route"],
             "kind": "effect" if truth["effects"] else ("ordinary" if truth["ordinary"] else "null"),
             "effects": effects, "found": [f"{f['physics']} {f['location']}" for f in found],
-            "baseline_reduced_chi2": before.get("reduced_chi2"), "held_out_ratio": ratio}
+            "baseline_reduced_chi2": before.get("reduced_chi2"), "held_out_ratio": ratio,
+            # degrees of freedom of the baseline fit: objective = chi-square / 2
+            "baseline_dof": (2 * before["objective"] / before["reduced_chi2"]
+                             if before.get("reduced_chi2") and before.get("objective") else None)}
 
 
 def _line(r):
@@ -124,10 +127,18 @@ def summary(rows, sizes):
     for r in quiet:
         if r["baseline_reduced_chi2"] is not None:
             by[r["route"]].append(r["baseline_reduced_chi2"])
+    pooled = defaultdict(lambda: [0.0, 0.0])
+    for r in quiet:
+        if r["baseline_reduced_chi2"] is not None and r.get("baseline_dof"):
+            pooled[r["route"]][0] += r["baseline_reduced_chi2"] * r["baseline_dof"]
+            pooled[r["route"]][1] += r["baseline_dof"]
     for route in ("one_segment", "welch", "frf_file"):
         v = by.get(route, [])
+        chi, dof = pooled.get(route, (0.0, 0.0))
+        # pooled: the route's chi-square over its degrees of freedom, all its cases together
         print(f"  {route:12s} n={len(v):2d}  " + (f"median {np.median(v):.2f}  range {min(v):.2f}-"
-                                                 f"{max(v):.2f}" if v else "-"))
+                                                 f"{max(v):.2f}" if v else "-")
+              + (f"  pooled {chi / dof:.2f} over {dof:.0f} degrees of freedom" if dof else ""))
     print("\ndetection limits: effects found with the right family and location, per size "
           "(size: the family's dimensionless measure; see SIZES in make_blind_benchmark.py)")
     table = defaultdict(lambda: defaultdict(list))

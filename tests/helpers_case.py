@@ -13,7 +13,7 @@ BASE = {
     "parameters": {"fixed": {"m1": 5.16}},
     "damping": {"model": "general", "zeta": 0.02},
     "excitation": {"type": "ground"},
-    "data": {"file": "frf.npz", "channels": [
+    "data": {"file": "frf.npz", "window": "none", "channels": [
         {"name": f"floor{i + 1}", "floor": i + 1, "output": "receptance", "column": i}
         for i in range(4)]},
     "frequencies": {"method": "all", "fmin": 0.5, "fmax": 6.5},

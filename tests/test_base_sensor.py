@@ -29,7 +29,7 @@ def _case(tmp_path, f, H, floors, excitation=None, output="absolute_accelerance"
                                       "stiffnesses": K_ST.tolist(), "frf_backend": backend},
             "parameters": {"fixed": {"m1": float(M_FL[0])}},
             "damping": {"model": "general", "matrix": shear_K(C_ST).tolist()},
-            "data": {"file": "frf.npz",
+            "data": {"file": "frf.npz", "window": "none",
                      "channels": [{"name": f"a{fl}", "floor": fl, "output": output, "column": i}
                                   for i, fl in enumerate(floors)]},
             "frequencies": {"method": "all"}}

@@ -58,7 +58,7 @@ def test_bad_case_file_message(folder, change, key, words):
 
 def test_bad_data_shapes(folder):
     chans = [{"name": "a", "floor": 1, "output": "receptance", "column": 7}]
-    path = _write(folder, deep_update(BASE, {"data": {"file": "frf.npz", "channels": chans}}))
+    path = _write(folder, deep_update(BASE, {"data": {"file": "frf.npz", "window": "none", "channels": chans}}))
     with pytest.raises(InputError, match=r"data.channels\[0\].column"):
         assemble(load_case(path))
     np.savez(os.path.join(folder, "bad.npz"), f=np.arange(5.0), H=np.ones((4, 6)))

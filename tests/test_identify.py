@@ -64,7 +64,7 @@ def test_force_input_has_no_null_space(tmp_path):
     f, H, chans = force_frf("receptance")
     path, _ = write_case(str(tmp_path), H=H, f=f, parameters={"fixed": None},
                          excitation={"type": "force", "floor": 1},
-                         data={"file": "frf.npz", "channels": chans})
+                         data={"file": "frf.npz", "window": "none", "channels": chans})
     pr = build_problem(assemble(load_case(path)))
     _, J = pr.residuals(pr.z0)
     assert not jacobian_report(J, pr.params.z_names, rtol=1e-6)["weak_directions"]

@@ -143,7 +143,7 @@ def _frame_case(folder, model, channels, excitation, extra=None):
     np.savez(os.path.join(folder, "frf.npz"), f=f, H=np.ones((n_ch, f.size)) * (1 + 1j))
     cfg = {"name": "t", "model": model, "damping": {"model": "rayleigh", "zeta": 0.02},
            "excitation": excitation, "parameters": {},
-           "data": {"file": "frf.npz", "channels": [dict(c, column=i, output="receptance")
+           "data": {"file": "frf.npz", "window": "none", "channels": [dict(c, column=i, output="receptance")
                                                     for i, c in enumerate(channels)]},
            "frequencies": {"method": "all"}, "search": {"starts": 1}}
     cfg.update(extra or {})

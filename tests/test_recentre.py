@@ -66,7 +66,7 @@ def write_chain_case(folder, backend, noise=0.01, seed=3, **model):
            "parameters": {"stiffness_bounds": [-0.5, 1.0]},
            "damping": {"model": "rayleigh", "a0": A0 * 1.2, "a1": A1 * 0.8},
            "excitation": {"type": "force", "floor": force + 1},
-           "data": {"file": "frf.npz", "channels": [
+           "data": {"file": "frf.npz", "window": "none", "channels": [
                {"name": f"a{d + 1}", "floor": d + 1, "output": "accelerance", "column": c}
                for c, d in enumerate(dofs)]},
            "frequencies": {"method": "all"},

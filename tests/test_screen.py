@@ -84,7 +84,7 @@ def _case(tmp_path, H, f, excitation, name, fmin=0.5):
            "parameters": {"fixed": {"m1": float(MASSES[0])}},
            "damping": {"model": "general", "zeta": 0.02},
            "excitation": {"type": "ground"} if excitation == "ground" else {"type": "force", "floor": 1},
-           "data": {"file": "frf.npz", "channels": [
+           "data": {"file": "frf.npz", "window": "none", "channels": [
                {"name": f"a{i + 1}", "floor": i + 1, "output": out, "column": i} for i in range(4)]},
            "frequencies": {"method": "half_power", "k": 2.0, "fmin": fmin, "fmax": 8.0}}
     (folder / "case.yaml").write_text(yaml.safe_dump(cfg))
@@ -204,7 +204,7 @@ def test_ordinary_changes_are_not_taken_for_swapped_channels(tmp_path):
                                       "stiffnesses": k0.tolist()},
                "damping": {"model": "general", "zeta": 0.02},
                "excitation": {"type": "force", "floor": p},
-               "data": {"file": "frf.npz", "channels": [
+               "data": {"file": "frf.npz", "window": "none", "channels": [
                    {"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance", "column": i}
                    for i in range(n)]},
                "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.1, "fmax": float(0.6 * fn)}}
