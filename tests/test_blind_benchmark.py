@@ -74,3 +74,29 @@ def test_case_list_covers_every_family_at_five_sizes_and_has_60_cases():
     assert sum(bool(s.get("ordinary")) for s in specs) >= 5
     assert {s.get("route") for s in specs} >= {None, "frf_file"}
     assert {s["signal"] for s in specs} == {"chirp", "random"}
+
+
+def test_null_damping_holds_no_detectable_damper():
+    """Story dashpots read back from C (minus its 60 % Rayleigh part) never exceed the median of
+    the other stories by a detectable damper, while a size-1 local_damper added on top does."""
+    rng = np.random.default_rng(5)
+    for t in range(60):
+        n = int(rng.integers(3, 6))
+        st = mb.real_structure(rng, n, t % 2 == 0)
+        M, K = st["M"], st["K"]
+        w = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+        a1 = 2 * st["zeta"] / (w[0] + w[-1])
+        R = st["C"] - 0.6 * (a1 * w[0] * w[-1] * M + a1 * K)
+        cs = np.array([-R[s, s - 1] for s in range(1, n)])      # stories 2..n
+        cs = np.r_[R[0, 0] - cs[0], cs]                 # story 1 joins floor 1 to the ground
+        unit = 2 * st["zeta"] * np.sqrt(st["k"] * st["m"])
+        excess = [(cs[s] - np.median(np.delete(cs, s))) / unit[s] for s in range(n)]
+        assert np.allclose(excess, st["dashpot_excess"], atol=1e-9)
+        assert max(excess) < mb.DASHPOT_CAP
+        s = int(np.argmax(excess))                      # a size-1 damper on the most damped story
+        c = mb.with_effect(st, (M, st["C"], K, np.zeros((n, n))), "local_damper",
+                           (s + 1, s), mb.DASHPOT_CAP, rng)[1]
+        added = (c - st["C"])[s, s]                     # the dashpot's own diagonal term
+        assert np.isclose(added, mb.DASHPOT_CAP * unit[s])
+        cs[s] += added
+        assert (cs[s] - np.median(np.delete(cs, s))) / unit[s] >= mb.DASHPOT_CAP
