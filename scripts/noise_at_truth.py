@@ -133,9 +133,32 @@ def kernel_lines(truth, case, keep, fit, stats):
     rng = np.random.default_rng(0)
     boot = [blocks[rng.integers(0, blocks.size, blocks.size)].mean() for _ in range(2000)]
     stats["truth"].append(float(z2.mean()))
+    n_eff = effective_points(np.log(np.abs(
+        case.H[keep][:, fit] / Hk[keep][:, fit])) / sigma_ln(case, fit)[keep], fit)
+    stats.setdefault("implied", []).append(float(np.sqrt(2.0 / n_eff)))
     return [f"  fitted points against the truth seen through the model's window (three taps): "
             f"mean z^2 {z2.mean():.2f} +- {np.std(boot):.2f} (block bootstrap, "
-            f"{col.size} frequencies), median z^2 {np.median(z2):.2f}"]
+            f"{col.size} frequencies), median z^2 {np.median(z2):.2f}",
+            f"  errors correlated between channels and neighbouring bins: {n_eff:.0f} effective "
+            f"independent points of {z2.size}; a right noise model would give this mean z^2 "
+            f"within +- {np.sqrt(2.0 / n_eff):.2f} (1 SD, Gaussian errors)"]
+
+
+def effective_points(z, fit, max_lag=3):
+    """N^2 / sum of squared correlations over all pairs of the N points z (n_ch, n_fit): the
+    number of independent Gaussian errors with the same spread of their mean square
+    (Var mean z^2 = 2 sum rho^2 / N^2). Correlations are estimated per channel pair and bin lag
+    (0..max_lag, within contiguous fitted windows)."""
+    z = np.real(np.asarray(z))
+    nc, nf = z.shape
+    s2 = np.mean(z ** 2)
+    total = nf * np.sum(((z @ z.T) / nf / s2) ** 2)
+    for lag in range(1, max_lag + 1):
+        ok = np.flatnonzero(fit[lag:] - fit[:-lag] == lag)
+        if ok.size >= 5:
+            c = (z[:, ok] @ z[:, ok + lag].T) / ok.size / s2
+            total += 2 * ok.size * np.sum(c ** 2)
+    return (nc * nf) ** 2 / total
 
 
 def split_lines(case, cfg, keep, stats):
@@ -212,7 +235,8 @@ def main():
     if v.size > 1:
         print(f"{v.size} cases, fitted points against the truth through the window: mean z^2 "
               f"{v.mean():.3f}, SD {v.std(ddof=1):.3f}, range {v.min():.2f}-{v.max():.2f}, "
-              f"{int(np.sum((v < 0.8) | (v > 1.3)))} outside 0.8-1.3")
+              f"{int(np.sum((v < 0.8) | (v > 1.3)))} outside 0.8-1.3; the SD that sampling alone "
+              f"gives a right model, median over the cases: {np.median(stats['implied']):.3f}")
     w = np.array(stats["split"])
     if w.size > 1 and w.size == v.size:
         print(f"  halves of the records: mean {w.mean():.3f}; correlation with the above "
