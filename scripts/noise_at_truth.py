@@ -126,15 +126,15 @@ def kernel_lines(truth, case, keep, fit, stats):
     dh = h / (2 * np.pi)
     Hk = (a * true_frf(truth, _At(case, case.f - dh)) + (1 - 2 * a) * true_frf(truth, case)
           + a * true_frf(truth, _At(case, case.f + dh)))
-    z2 = (np.log(np.abs(case.H[keep][:, fit] / Hk[keep][:, fit])) / sigma_ln(case, fit)[keep]) ** 2
+    z = np.log(np.abs(case.H[keep][:, fit] / Hk[keep][:, fit])) / sigma_ln(case, fit)[keep]
+    z2 = z ** 2
     col = z2.mean(axis=0)
     nb = max(col.size // 4, 1)
     blocks = col[:nb * 4].reshape(nb, -1).mean(axis=1) if col.size >= 4 else col
     rng = np.random.default_rng(0)
     boot = [blocks[rng.integers(0, blocks.size, blocks.size)].mean() for _ in range(2000)]
     stats["truth"].append(float(z2.mean()))
-    n_eff = effective_points(np.log(np.abs(
-        case.H[keep][:, fit] / Hk[keep][:, fit])) / sigma_ln(case, fit)[keep], fit)
+    n_eff = effective_points(z, fit)
     stats.setdefault("implied", []).append(float(np.sqrt(2.0 / n_eff)))
     return [f"  fitted points against the truth seen through the model's window (three taps): "
             f"mean z^2 {z2.mean():.2f} +- {np.std(boot):.2f} (block bootstrap, "
@@ -149,7 +149,6 @@ def effective_points(z, fit, max_lag=3):
     number of independent Gaussian errors with the same spread of their mean square
     (Var mean z^2 = 2 sum rho^2 / N^2). Correlations are estimated per channel pair and bin lag
     (0..max_lag, within contiguous fitted windows)."""
-    z = np.real(np.asarray(z))
     nc, nf = z.shape
     s2 = np.mean(z ** 2)
     total = nf * np.sum(((z @ z.T) / nf / s2) ** 2)

@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from score_blind import SIZE_DETECTABLE
+
 ROOT = Path(__file__).resolve().parents[1]
 ROUTES = ("one_segment", "welch", "frf_file")
-DETECTABLE = 2     # size rank, as scripts/score_blind.py
 BAND = (0.8, 1.3)  # the baseline target of issue 7
 
 
@@ -34,7 +35,7 @@ def seeds_in_order():
 def row(seed):
     rows = [json.loads(line) for line in
             (ROOT / f"docs/benchmarks/blind_{seed}_scores.jsonl").read_text().splitlines() if line]
-    det = [e for r in rows for e in r["effects"] if e.get("rank", 3) >= DETECTABLE]
+    det = [e for r in rows for e in r["effects"] if e.get("rank", 3) >= SIZE_DETECTABLE]
     quiet = [r for r in rows if r["kind"] != "effect"]
     held = [r["held_out_ratio"] for r in rows if r["kind"] == "effect" and r["held_out_ratio"]
             and any(e["location_ok"] for e in r["effects"])]
