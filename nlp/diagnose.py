@@ -31,7 +31,7 @@ import numpy as np
 
 from .case import _half_power, assemble
 from .identify import tangent_basis
-from .noise import sigma_ln
+from .noise import describe as describe_noise, sigma_ln
 from .checks import check_start_residuals
 from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                       NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
@@ -1072,6 +1072,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False,
     held_b = float(np.mean(rh0 ** 2))
     log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
         f"held-out {held_b:.2f} on {rh0.size} points")
+    log("  " + describe_noise(case.noise)["statement"])
     state = {"current": [], "z": b_res.z, "chi": chi_b, "held": held_b, "problem": base}
     nonlin = _nonlinearity(cfg, log) if _nonlin is False else _nonlin
     # a level-dependent structure that the linear model at the reference level misses by
@@ -1768,6 +1769,10 @@ def _verdict(cfg, case, out, log, ctx):
                                  "damper is judged on it.")
     elif not cfg.data.level_files and (verdict == "ambiguous" or remaining):
         suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
+    if not describe_noise(case.noise)["measured"]:
+        suggestions.append("store the coherence and the number of averages with the FRF"
+                           if case.records is None else
+                           "record a quiet stretch before and after the excitation")
     if indistinct:
         phi = indistinct[0].get("phi", 1.0)
         statements.append(
@@ -1834,7 +1839,8 @@ def _verdict(cfg, case, out, log, ctx):
               "residual_map": {"before": ctx["cells"], "after": cells_after},
               "whole_band": whole,
               "extra_modes": whole["extra_modes"] if whole else [],
-              "suggested_measurements": suggestions, "provenance": provenance(cfg)}
+              "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
+              "provenance": provenance(cfg)}
     if ctx.get("screening") is not None:
         result["screening"] = ctx["screening"]
     if ctx.get("phase") is not None:

@@ -52,7 +52,7 @@ __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_we
            "var_ln_transient", "kernel_moment", "smoothing_taps", "estimator_kernel",
            "resolution_bias", "rest_mask",
            "rest_noise_psd", "local_scatter", "spaced_scatter", "correlation_lag",
-           "second_difference_factor", "VAR_LN_MAX"]
+           "second_difference_factor", "describe", "VAR_LN_MAX"]
 
 # ln|z| of a complex Gaussian z has variance pi^2/24 (pure noise: no signal left)
 VAR_LN_MAX = math.pi ** 2 / 24
@@ -581,6 +581,42 @@ def noise_model(case):
     lk = LEAKAGE_KEEP * bias2
     return NoiseModel(np.sqrt(s ** 2 + lk), np.sqrt(sp ** 2 + lk), "scatter", 1.0,
                       sigma_detect=np.sqrt(s ** 2 + bias2))
+
+
+# mean z^2 per file at the truth of 17 blind null FRF files without coherence (README,
+# scripts/frf_file_noise_lead.py): what a level read from a file's own scatter is worth
+SCATTER_RANGE = (0.7, 1.4)
+
+
+def describe(model):
+    """How the noise level was obtained, in words a user can weigh the chi-square by.
+
+    Parameters
+    ----------
+    model : NoiseModel
+
+    Returns
+    -------
+    dict
+        ``route``, ``n_averages`` and ``statement``; ``measured`` is False when the level
+        was read from the FRF's own scatter along frequency (no coherence, no rest
+        portion), whose chi-square is then uncertain by about SCATTER_RANGE.
+    """
+    n = float(model.n_averages)
+    text = {
+        "transient": "one segment of a transient record; the variance of each point from the "
+                     "noise measured in the record's rest portions (input and outputs)",
+        "welch": f"Welch averages ({n:.1f} effective); the variance of each point from the "
+                 "coherence",
+        "frf_coherence": f"an FRF file with its coherence ({n:.1f} effective averages); the "
+                         "variance of each point from the coherence",
+        "scatter": "read from the FRF's own scatter along frequency (no coherence and no rest "
+                   "portion to measure it from); against the truth, blind null files of this "
+                   f"kind gave {SCATTER_RANGE[0]:g}-{SCATTER_RANGE[1]:g} in place of 1, so judge "
+                   "the reduced chi-square to about that",
+    }[model.route]
+    return {"route": model.route, "n_averages": n, "measured": model.route != "scatter",
+            "statement": "Noise: " + text + "."}
 
 
 def _file_resolution_bias2(f, H, window="hann"):

@@ -56,6 +56,9 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
     assert res["verdict"] == "adequate", res["findings"]
     assert res["findings"] == []
     saved = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    # random records averaged by Welch: a measured noise level, from the coherence
+    assert saved["noise"]["route"] == "welch" and saved["noise"]["measured"]
+    assert saved["noise"]["n_averages"] > 1
     if levels > 1:
         # written although nothing was named: the levels of a linear frame share their
         # masses and stiffnesses within BIC's price of the held parameters

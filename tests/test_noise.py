@@ -30,6 +30,13 @@ def test_null_case_has_reduced_chi2_near_one(tmp_path, route):
     # window's kernel
     assert (case.target.kernel is not None) == (route in ("welch", "frf_welch", "frf_welch_bare"))
     assert 0.8 <= chi2 <= 1.3, chi2
+    # what the user is told the level is worth: a level read from the FRF's own scatter
+    # says its range, and this null case lies inside it
+    told = noise.describe(model)
+    assert told["route"] == model.route and told["measured"] == (route != "frf_scatter" and
+                                                                   route != "frf_welch_bare")
+    if not told["measured"]:
+        assert noise.SCATTER_RANGE[0] <= chi2 <= noise.SCATTER_RANGE[1]
     inside = (case.f > 1) & (case.f < 9)
     s = model.sigma_ln[:, inside]
     if route == "transient":     # the scatter of ln|H| follows the response (peaks vs shoulders)
