@@ -460,6 +460,21 @@ def _half_power(cfg, f, H, channels, excitation, coherence, sigma=None):
                               fmax=fc.fmax, sigma=sigma)
 
 
+def selectable(cfg, f, channels, coherence):
+    """(n_f,) mask of the points the half-power selection may keep: f inside
+    fmin-fmax, and coherence >= min_coherence on every structure channel (the
+    rules `_half_power` applies). Windows added around other frequencies (the
+    diagnosis's hot spots) keep to it, so no point the case rules out is fitted."""
+    fc = cfg.frequencies
+    ok = (f >= (-np.inf if fc.fmin is None else fc.fmin)) & \
+         (f <= (np.inf if fc.fmax is None else fc.fmax))
+    if fc.min_coherence is not None and coherence is not None:
+        rows = [c for c, ch in enumerate(channels) if ch.dof != BASE_DOF] \
+            or list(range(len(channels)))
+        ok &= np.min(np.asarray(coherence)[rows], axis=0) >= fc.min_coherence
+    return ok
+
+
 def detection_noise(f, H, det, channels, sigma):
     """Std of ln|det| from the std of ln|H| (n_ch, n_f): the jw powers leave it
     unchanged, the +1 of a relative channel under ground input scales it by

@@ -29,7 +29,7 @@ import os
 
 import numpy as np
 
-from .case import _half_power, assemble
+from .case import _half_power, assemble, selectable
 from .identify import tangent_basis
 from .noise import describe as describe_noise, sigma_ln
 from .checks import check_start_residuals
@@ -1044,12 +1044,17 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False,
     held = _windows(cfg, case, 3 * widen)
     if _hot:
         # the fit only sees its windows: an effect between the resonances must be in them
-        near = [np.flatnonzero(np.abs(case.f / h - 1.0) <= w * HOT_WINDOW)
+        # and to the case's band and coherence rule (retired 864644/55_null: a window at
+        # the top of the excitation band fitted points of coherence 0.01-0.2 above fmax)
+        ok = selectable(cfg, case.f, case.channels, case.coherence)
+        near = [np.flatnonzero((np.abs(case.f / h - 1.0) <= w * HOT_WINDOW) & ok)
                 for h in _hot for w in (1, 3)]
         fit = np.union1d(fit, np.concatenate(near[0::2]))
         held = np.union1d(held, np.concatenate(near[1::2]))
-        log("also fitting the largest misfits off the windows: "
-            + ", ".join(f"{h:.3g} Hz +- {100 * HOT_WINDOW:.0f} %" for h in _hot))
+        used = [h for h, n in zip(_hot, near[0::2]) if n.size]
+        if used:
+            log("also fitting the largest misfits off the windows: "
+                + ", ".join(f"{h:.3g} Hz +- {100 * HOT_WINDOW:.0f} %" for h in used))
     held = np.setdiff1d(held, fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = _target(case, fit, sig_fit)

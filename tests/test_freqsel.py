@@ -191,3 +191,28 @@ def test_bump_between_two_zeros_is_no_peak():
     H = _noisy(np.vstack([zeros * pole, 2 * zeros * pole, 0.5 * pole]), 0.005, seed=4)
     found = f[find_peaks(f, H, sigma=sd)]
     assert found.size == 2 and abs(found[0] - 5.0) <= 0.1 * 5.0
+
+
+def test_selectable_keeps_the_band_and_the_structure_channels_coherence():
+    """The points a diagnosis may add to its fit (hot-spot windows) obey the case's
+    fmin, fmax and min_coherence as the half-power selection does; a base sensor's
+    coherence does not rule a point out (its peaks are not looked for either)."""
+    from types import SimpleNamespace
+    from nlp.case import selectable
+    from nlp.frf import BASE_DOF
+    f = np.linspace(0.0, 20.0, 201)                  # 0.1 Hz steps
+    coh = np.full((3, f.size), 0.9)
+    coh[1, 120:131] = 0.3                            # a dip on a floor channel: 12-13 Hz
+    coh[0, 50:61] = 0.1                              # the base sensor's: 5-6 Hz
+    channels = [SimpleNamespace(dof=BASE_DOF), SimpleNamespace(dof=0), SimpleNamespace(dof=1)]
+    fc = SimpleNamespace(fmin=1.0, fmax=14.0, min_coherence=0.5)
+    ok = selectable(SimpleNamespace(frequencies=fc), f, channels, coh)
+    assert ok[10] and ok[140] and not ok[9] and not ok[141]      # 1.0 and 14.0 Hz inclusive
+    assert not ok[120:131].any() and ok[119] and ok[131]
+    assert ok[50:61].all()
+    assert ok.sum() == (140 - 10 + 1) - 11
+    # no coherence rule, or no coherence: the band alone
+    fc.min_coherence = None
+    assert selectable(SimpleNamespace(frequencies=fc), f, channels, coh).sum() == 131
+    fc.min_coherence = 0.5
+    assert selectable(SimpleNamespace(frequencies=fc), f, channels, None).sum() == 131
