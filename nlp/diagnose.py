@@ -398,11 +398,11 @@ def _continue_refit(r, case, held, sig_held, log):
 def _split(case, pr, z):
     """How far the fitted appendage's mode stands from the nearest structural mode, against
     what the data can resolve (nlp/diagnosis/resolution.py)."""
-    from .diagnosis.resolution import appendage_split, estimate_resolution
-    sep, bw, fa, fb = appendage_split(*pr.system_matrices(z))
+    from .diagnosis.resolution import appendage_split, estimate_resolution, resolved
+    sep, half, fa, fb = appendage_split(*pr.system_matrices(z))
     res_hz = estimate_resolution(case.f, case.config.data.window)
-    return {"separation_hz": sep, "bandwidth_hz": bw, "resolution_hz": res_hz,
-            "appendage_mode_hz": fa, "nearest_mode_hz": fb, "resolved": sep > max(bw, res_hz)}
+    return {"separation_hz": sep, "half_widths_hz": half, "resolution_hz": res_hz,
+            "appendage_mode_hz": fa, "nearest_mode_hz": fb, "resolved": resolved(sep, half, res_hz)}
 
 
 def _refit_one(jobs, i):
@@ -498,9 +498,11 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
             ok, why = False, (f"its mode at {sp['appendage_mode_hz']:.3f} Hz is "
                               f"{sp['separation_hz']:.3f} Hz from the mode at "
                               f"{sp['nearest_mode_hz']:.3f} Hz, within their half-power "
-                              f"bandwidth ({sp['bandwidth_hz']:.3f} Hz) or the estimate's "
+                              f"half-widths ({sp['half_widths_hz']:.3f} Hz) or the estimate's "
                               f"resolution ({sp['resolution_hz']:.3f} Hz): one reshaped peak, "
                               "not a separate resonance")
+        if ok and r["physics"] == "secondary_oscillator":
+            ok, why = _damping_measured(r)
         r["significant"], r["why_not"] = ok, why
         # no acceptance on the held-out points alone: their mean z^2 is carried by the few
         # anti-resonance points where a tiny parameter moves the model most and the noise
@@ -511,6 +513,22 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
             r["delta_bic"] <= -BIC_ACCEPT and held_out_ok(r["held_out"], ref_held, r["physics"]))
     held_out_excess(results, n_held)
     return phi
+
+
+def _damping_measured(r):
+    """(ok, reason): an appendage's damping ratio stands clear of its box's lower bound
+    (nlp/diagnosis/resolution.damping_pinned)."""
+    from .diagnosis.resolution import damping_pinned
+    from .physics import ZETA_S_MIN
+    name = next((n for n in r["parameters"] if n.startswith("zeta_s")), None)
+    if name is None:
+        return True, ""
+    z, se = r["parameters"][name], r["uncertainty"][name]
+    if damping_pinned(z, se, ZETA_S_MIN):
+        return False, (f"{name} = {z:.3g} +- {se:.2g} lies within one standard error of its "
+                       f"lower bound {ZETA_S_MIN:g}: a line as sharp as the model allows, "
+                       "no damping measured, not a resonance")
+    return True, ""
 
 
 def _better_unresolved(results, best, ref_held):
@@ -1792,7 +1810,7 @@ def _verdict(cfg, case, out, log, ctx):
             f"{_where(r)} explains the data better than {r['instead_of']} (dBIC "
             f"{r['delta_bic']:.1f}, held-out {r['held_out']:.2f}), but its mode at "
             f"{sp['appendage_mode_hz']:.3f} Hz lies {sp['separation_hz']:.3f} Hz from the mode at "
-            f"{sp['nearest_mode_hz']:.3f} Hz, inside their bandwidth or the resolution: the data "
+            f"{sp['nearest_mode_hz']:.3f} Hz, inside their half-power bands or the resolution: the data "
             f"do not show it as a resonance of its own, so it is not named, and "
             f"{r['instead_of']} may stand in for it.")
     for r in unconfirmed:

@@ -104,6 +104,9 @@ class BaseFlexibility:
                 "Kh": _augment(Kh, -gH, ca.sum1(gH))}
 
 
+ZETA_S_MIN = 0.001   # lower bound of an appendage's damping ratio in its fit
+
+
 @dataclass(frozen=True)
 class SecondaryOscillator:
     """An appendage at a floor: mass ratio mu (to m_ref), frequency f_s [Hz], damping zeta_s.
@@ -126,7 +129,7 @@ class SecondaryOscillator:
         return {"floor": self.floor}
 
     def spec(self, ref):
-        return {"initial": [0.02, self.f0, 0.02], "lower": [0.0, 0.5 * self.f0, 0.001],
+        return {"initial": [0.02, self.f0, 0.02], "lower": [0.0, 0.5 * self.f0, ZETA_S_MIN],
                 "upper": [0.5, 2.0 * self.f0, 0.3], "scale": [0.01, 0.1 * self.f0, 0.01],
                 "null": [0.0, self.f0, 0.02]}
 

@@ -369,6 +369,24 @@ def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
     assert firm["accepted"] and "not_determined" not in _public(firm)
 
 
+def test_an_appendage_whose_damping_sits_on_its_lower_bound_is_refused():
+    """A determined damping ratio within one standard error of the box's lower bound
+    (retired 83439/50: 0.00102 +- 0.00033 against 0.001) is a line as sharp as the
+    model allows, not a resonance: refused, with the reason. Two errors above the
+    bound it stands; an undetermined damping (error above its value) does not decide."""
+    from nlp.diagnosis.resolution import damping_pinned
+    from nlp.physics import ZETA_S_MIN, SecondaryOscillator
+    assert SecondaryOscillator(4, 5.0).spec({})["lower"][2] == ZETA_S_MIN
+    assert damping_pinned(0.00102, 0.00033, 0.001)
+    assert not damping_pinned(0.001 + 2 * 0.00033, 0.00033, 0.001)
+    assert not damping_pinned(0.0245, 0.11, 0.001)
+    sharp = _appendage(0.05, 0.005, 0.05, 0.00102, 0.00033)
+    clear = _appendage(0.05, 0.005, 0.05, 0.00175, 0.00033)
+    _decide([sharp, clear], 3000.0, 6.0, 1700, 1771)
+    assert not sharp["accepted"] and "lower bound" in sharp["why_not"]
+    assert clear["accepted"]
+
+
 def test_a_better_unresolved_appendage_is_said_beside_the_finding():
     """An appendage refused only because its mode sits inside the bandwidth of a structural
     mode, but ahead of the accepted coupling on BIC and on the held-out points (retired
@@ -376,7 +394,7 @@ def test_a_better_unresolved_appendage_is_said_beside_the_finding():
     returned as a better explanation the data cannot resolve. One that trails the coupling,
     or one refused for its errors, is not."""
     from nlp.diagnose import _better_unresolved
-    split = {"separation_hz": 0.49, "bandwidth_hz": 0.68, "resolution_hz": 0.05,
+    split = {"separation_hz": 0.49, "half_widths_hz": 0.68, "resolution_hz": 0.05,
              "appendage_mode_hz": 8.39, "nearest_mode_hz": 7.90, "resolved": False}
     coupling = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, 2000.0), held_out=1.89)
     ahead = dict(_appendage(0.05, 0.005, 0.05, 0.0245, 0.004), chi2=1600.0, held_out=1.18,
@@ -512,29 +530,53 @@ def test_modal_share_of_a_story_dashpot():
 def test_appendage_split_of_a_tuned_absorber_and_what_resolves_it():
     """An undamped absorber of mass ratio mu tuned to a 1-DOF main mass splits its mode into
     (w/w0)^2 = 1 + mu/2 +- sqrt(mu + mu^2/4) (Den Hartog). A tiny one (mu = 0.0004) splits
-    by less than the half-power bandwidth of 2 % damping: one reshaped peak; mu = 0.05 splits
+    by less than the half-power half-widths of 2 % damping: one reshaped peak; mu = 0.05 splits
     by about f sqrt(mu), far wider: a resonance of its own."""
-    from nlp.diagnosis.resolution import appendage_split, estimate_resolution
+    from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
     m0, f0 = 10.0, 3.0
     k0 = m0 * (2 * np.pi * f0) ** 2
-    for mu, resolved in ((0.0004, False), (0.05, True)):
+    for mu, expect in ((0.0004, False), (0.05, True)):
         ms = mu * m0
         ks = ms * (2 * np.pi * f0) ** 2
         M = np.diag([m0, ms])
         K = np.array([[k0 + ks, -ks], [-ks, ks]])
         exact = f0 * np.sqrt(1 + mu / 2 + np.array([-1, 1]) * np.sqrt(mu + mu ** 2 / 4))
-        sep, bw, fa, fb = appendage_split(M, K, 1e-9 * K)
+        sep, half, fa, fb = appendage_split(M, K, 1e-9 * K)
         assert sep == pytest.approx(exact[1] - exact[0], rel=1e-6)
         assert sorted([fa, fb]) == pytest.approx(exact, rel=1e-6)
         # 2 % damping of the main mass and the absorber
         C = np.array([[2 * 0.02 * np.sqrt(k0 * m0), 0.0], [0.0, 0.0]]) \
             + 2 * 0.02 * np.sqrt(ks * ms) * np.array([[1.0, -1.0], [-1.0, 1.0]])
-        sep, bw, _, _ = appendage_split(M, K, C)
-        assert (sep > bw) == resolved
+        sep, half, _, _ = appendage_split(M, K, C)
+        assert resolved(sep, half, 0.001) == expect
     # a Hann estimate resolves 1.5 bins (its equivalent noise bandwidth), a rectangular one 1
     f = np.arange(0.0, 50.0, 0.025)
     assert estimate_resolution(f, "hann") == pytest.approx(1.5 * 0.025, rel=1e-3)
     assert estimate_resolution(f, "boxcar") == pytest.approx(0.025)
+
+
+def test_a_damped_appendage_whose_half_power_bands_stand_apart_is_resolved():
+    """Two uncoupled oscillators (a structural mode at 8.08 Hz, 1 %, and an appendage at
+    8.73 Hz, 5 %, as fitted on retired 83439/50): the half-widths are zeta f of each,
+    0.081 + 0.437 Hz, under the 0.65 Hz between them, so the half-power bands do not
+    overlap and the appendage is a resonance of its own, although its full bandwidth
+    (0.87 Hz) exceeds the separation. Closer than the half-widths, or than the
+    estimate's resolution, it is not."""
+    from nlp.diagnosis.resolution import appendage_split, resolved
+    m = np.array([10.0, 0.5])
+    f = np.array([8.08, 8.73])
+    zeta = np.array([0.01, 0.05])
+    k = m * (2 * np.pi * f) ** 2
+    c = 2 * zeta * np.sqrt(k * m)
+    sep, half, fa, fb = appendage_split(np.diag(m), np.diag(k), np.diag(c))
+    # modal_parameters reads f = |lambda| / 2 pi: the undamped natural frequencies
+    assert (fa, fb) == pytest.approx((8.73, 8.08), rel=1e-9)
+    assert sep == pytest.approx(0.65, rel=1e-9)
+    assert half == pytest.approx(0.01 * 8.08 + 0.05 * 8.73, rel=1e-9)
+    assert 2 * 0.05 * 8.73 > sep                  # the old rule's full bandwidth refused it
+    assert resolved(sep, half, 0.006)
+    assert not resolved(sep, half, 0.7)           # a coarse estimate does not resolve it
+    assert not resolved(0.9 * half, half, 0.006)
 
 
 class _DampedFrame:
