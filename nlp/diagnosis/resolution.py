@@ -14,7 +14,7 @@ f sqrt(mu) where it is tuned onto the mode.
 
 The larger of the two full bandwidths (2 zeta f), used before, refused damped
 appendages whose half-power bands stand apart (retired 83439/50: mu 0.045,
-zeta_s 0.054, its mode 0.648 Hz from the nearest, half-widths 0.47 + 0.10 Hz,
+zeta_s 0.054, its mode 0.648 Hz from the nearest, half-widths 0.419 + 0.200 Hz,
 dBIC -21562 and a held-out misfit 27 times lower than the base flexibility named
 in its place).
 """
