@@ -11,9 +11,11 @@ is printed with sigma from:
   the robust level over 2 x 25 + 1 differences);
 * variants of that level, not in the package: half-widths 12 and 50; a trimmed mean of the
   squared differences (20 %, 30 % trimmed) in place of the median absolute deviation; one level
-  for ln|H| and arg H together (both parts' differences in one median); and the level of the
+  for ln|H| and arg H together (both parts' differences in one median); the level of the
   differences times |H| at their centre, divided by |H| again (the output-noise shape
-  1 / |H|^2).
+  1 / |H|^2); and the level without the differences whose span holds a sharp feature (a
+  squared resolution bias over (k x the package's level)^2, k = 2 and 4), so that the
+  structure's peaks do not count as scatter.
 
 H_t is the true FRF (``truth.json``, computed in ``scripts/noise_at_truth.py`` independently of
 the package's FRF code) through the Hann window's three taps, as the fit sees it. A column's
@@ -32,6 +34,7 @@ from types import SimpleNamespace
 from unittest import mock
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 from scipy.stats import norm
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -107,10 +110,35 @@ def output_shape(H):
     return levels
 
 
+def without_sharp(H, k):
+    bias2 = N._file_resolution_bias2(np.arange(H.shape[1], dtype=float), H, "hann")
+
+    def levels(d, n, shift, hw, factor):
+        first = PACKAGE(d, n, shift, hw, factor)
+        m = d.shape[1]
+        # the largest bias over each difference's span of 3 x 3 + 1 bins
+        over = maximum_filter1d(bias2, size=10, axis=1, mode="nearest")[:, shift:shift + m]
+        out = []
+        for part, s1 in zip((d.real, d.imag), first):
+            sharp = over > (k * s1[:, shift:shift + m]) ** 2
+            s = s1.copy()
+            for k_ in range(n):
+                j = min(max(k_ - shift, 0), m - 1)
+                lo, hi = max(j - hw, 0), j + hw + 1
+                for c in range(d.shape[0]):
+                    seg = part[c, lo:hi][~sharp[c, lo:hi]]
+                    if seg.size >= 15:
+                        s[c, k_] = 1.4826 * np.median(np.abs(seg - np.median(seg))) / math.sqrt(factor)
+            out.append(np.maximum(s, 1e-4))
+        return tuple(out)
+    return levels
+
+
 def variants(H):
     return {"package": PACKAGE, "hw12": half_width(0.5), "hw50": half_width(2.0),
             "trim20": trimmed(0.2), "trim30": trimmed(0.3), "re+im": pooled,
-            "1/|H|": output_shape(H)}
+            "1/|H|": output_shape(H), "sharp2": without_sharp(H, 2.0),
+            "sharp4": without_sharp(H, 4.0)}
 
 
 def one_seed(folder):
