@@ -510,7 +510,8 @@ def _decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
         # -7.7 N/m, 0.25 % of a story, at dBIC -2.4 "halved" it, 2.99 -> 1.15; on the 325
         # retired cases kept, that rule accepted nothing else)
         r["accepted"] = not r["at_bound"] and ok and (
-            r["delta_bic"] <= -BIC_ACCEPT and held_out_ok(r["held_out"], ref_held, r["physics"]))
+            r["delta_bic"] <= -BIC_ACCEPT
+            and held_out_ok(r["held_out"], ref_held, r["physics"], r["delta_bic"]))
     held_out_excess(results, n_held)
     return phi
 
@@ -540,7 +541,8 @@ def _better_unresolved(results, best, ref_held):
     out = []
     for r in results:
         if (r.get("unresolved") and not r["at_bound"] and r["delta_bic"] <= -BIC_ACCEPT
-                and held_out_ok(r["held_out"], ref_held, r["physics"]) and evidence(r) < evidence(best)
+                and held_out_ok(r["held_out"], ref_held, r["physics"], r["delta_bic"])
+                and evidence(r) < evidence(best)
                 and (r["physics"], repr(r["location"])) != (best["physics"], repr(best["location"]))):
             r["instead_of"] = _where(best)
             out.append(r)

@@ -18,7 +18,8 @@ from nlp.config import load_case
 from nlp.case import assemble
 from nlp.diagnose import (_classify, _decide, _normalised, _problem, _public, _repolish,
                           _target, _windows, diagnose, noise_sigma)
-from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, dispersion, evidence,
+from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, STRONG_BIC, dispersion,
+                                    evidence,
                                     held_out_excess, held_out_ok, scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
 
@@ -241,6 +242,26 @@ def test_held_out_points_already_at_their_noise_need_only_not_get_worse():
     _decide([a], ref_chi, 1.08, nu, n_fit)
     assert a["delta_bic"] <= -BIC_ACCEPT and a["significant"] and not a["accepted"]
     assert held_out_ok(0.8 * 1.08, 1.08, "secondary_oscillator")
+
+
+def test_an_appendage_proven_on_the_fitted_points_needs_only_leave_the_held_out_no_worse():
+    """Retired 65424/13: a 0.05 appendage at floor 1, in the widened look (3x windows, few
+    held-out points left), at dBIC -408 took the held-out chi-square only 1.34 -> 1.20. In
+    40 retired nulls no appendage came within a factor 2 of STRONG_BIC, so one that far
+    ahead on the fitted points is accepted if the held-out points are no worse."""
+    ref_chi, nu, n_fit = 1840.0, 1830, 1841
+    a = dict(_result("secondary_oscillator", {"floor": 1}, ref_chi - 430.0, value=0.01,
+                     se=0.001), held_out=1.20)
+    _decide([a], ref_chi, 1.34, nu, n_fit)
+    # scaled: phi = 1 (reduced chi-square below 1), one parameter of the test's result
+    assert a["delta_bic"] == pytest.approx(-430.0 + math.log(n_fit))
+    assert a["delta_bic"] <= -STRONG_BIC and a["significant"] and a["accepted"]
+    a["held_out"] = 1.35                  # a hair worse on the points never fitted
+    _decide([a], ref_chi, 1.34, nu, n_fit)
+    assert not a["accepted"]
+    assert not held_out_ok(1.20, 1.34, "secondary_oscillator", -STRONG_BIC + 1.0)
+    assert held_out_ok(1.20, 1.34, "secondary_oscillator", -STRONG_BIC)
+    assert not held_out_ok(1.35, 1.34, "secondary_oscillator", -10 * STRONG_BIC)
 
 
 def test_held_out_points_tell_apart_candidates_that_fit_the_windows_alike():
