@@ -39,6 +39,7 @@ from .physics import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper
 from .problem import SolverConfig, Target, UpdatingProblem
 from .provenance import provenance
 from .search import SearchConfig, scatter_search
+from .diagnosis.spread import chi2_spread
 from .diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, agree, dispersion,
                                  effect_terms, evidence, held_out_excess, held_out_ok,
                                  quasi_covariance,
@@ -310,6 +311,15 @@ def _bands(f_idx):
             groups.append(np.arange(start, k))
             start = k
     return groups
+
+
+def _signed(problem, z, case, idx, sigma):
+    """Signed residuals over noise, (n_ch, n) or (2 n_ch, n) with the phase: the real and
+    imaginary parts of ln(Ha/Hx) / sigma, whose mean square is the objective's."""
+    d = np.log(problem.channel_frfs(z, 2 * np.pi * case.f[idx]) / case.H[:, idx])
+    if case.config.objective.residual == "complex":
+        return np.vstack([d.real, d.imag]) / np.vstack([sigma, sigma])
+    return d.real / sigma
 
 
 def _residual_map(case, problem, z, fit, held, sig_fit, sig_held):
@@ -1095,8 +1105,12 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False,
     nu = max(n_fit - base.params.n_z, 1)
     cells, _, rh0 = _residual_map(case, base, b_res.z, fit, held, sig_fit, sig_held)
     held_b = float(np.mean(rh0 ** 2))
-    log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points, "
-        f"held-out {held_b:.2f} on {rh0.size} points")
+    # errors shared between channels and neighbouring bins: a right noise model's
+    # reduced chi-square strays from 1 by this much on these points (diagnosis.spread)
+    sd_b, n_eff = chi2_spread(_signed(base, b_res.z, case, fit, sig_fit), fit)
+    log(f"baseline: reduced chi-square {chi_b / nu:.2f} on {n_fit} fitted points "
+        f"(a right noise model gives 1 +- {sd_b:.2f} here: {n_eff:.0f} effective independent "
+        f"points), held-out {held_b:.2f} on {rh0.size} points")
     log("  " + describe_noise(case.noise)["statement"])
     state = {"current": [], "z": b_res.z, "chi": chi_b, "held": held_b, "problem": base}
     nonlin = _nonlinearity(cfg, log) if _nonlin is False else _nonlin
@@ -1218,6 +1232,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, _nonlin=False,
     ctx = {"base": base, "b_res": b_res, "found": found, "alternatives": alternatives,
            "indistinct": indistinct, "tried": tried, "cells": cells, "fit": fit, "held": held,
            "sig_fit": sig_fit, "sig_held": sig_held, "chi_b": chi_b, "nu": nu, "held_b": held_b,
+           "spread": (sd_b, n_eff),
            "state": state, "nonlin": nonlin, "inside": inside, "consistency": consistency,
            "unconfirmed": unconfirmed, "unresolved": unresolved,
            "whole": whole, "phi": phis[0] if phis else 1.0, "phase": phase, "loss": loss,
@@ -1774,7 +1789,8 @@ def _verdict(cfg, case, out, log, ctx):
     cells_after, _, _ = _residual_map(case, improved, z_imp, fit, held, sig_fit, sig_held)
     k = improved.params.n_z - base.params.n_z
     fit_before = {"objective": b_res.f, "reduced_chi2": chi_b / nu, "held_out_chi2": held_b,
-                  "converged": ctx["baseline_converged"]}
+                  "converged": ctx["baseline_converged"],
+                  "reduced_chi2_sd": ctx["spread"][0], "effective_points": ctx["spread"][1]}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
     if nonlin_found and not found:

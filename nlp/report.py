@@ -326,6 +326,12 @@ def _diagnosis_report(out):
                   _table(["", "objective", "reduced chi-square", "held-out chi-square"],
                          [[k, *[(fit.get(k) or {}).get(x) for x in keys]]
                           for k in ("before", "after") if k in fit])]
+        b = fit.get("before") or {}
+        if b.get("reduced_chi2_sd"):
+            parts.append(f"<p>With a right noise model the baseline's reduced chi-square would be "
+                         f"1 +- {b['reduced_chi2_sd']:.2f} (one standard deviation) on these "
+                         f"points: their errors are shared between channels and neighbouring "
+                         f"bins, {b['effective_points']:.0f} effective independent points.</p>")
     parts.append("<h2>Residual map</h2><p>Mean squared residual / noise in each channel and "
                  "band, fitted points and held-out shoulders, before and after the added "
                  "physics.</p>")

@@ -47,6 +47,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from nlp.case import assemble  # noqa: E402
 from nlp.config import load_case  # noqa: E402
 from nlp.diagnose import _windows  # noqa: E402
+from nlp.diagnosis.spread import effective_points  # noqa: E402
 from nlp.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
                        welch_averages)
 
@@ -142,22 +143,6 @@ def kernel_lines(truth, case, keep, fit, stats):
             f"  errors correlated between channels and neighbouring bins: {n_eff:.0f} effective "
             f"independent points of {z2.size}; a right noise model would give this mean z^2 "
             f"within +- {np.sqrt(2.0 / n_eff):.2f} (1 SD, Gaussian errors)"]
-
-
-def effective_points(z, fit, max_lag=3):
-    """N^2 / sum of squared correlations over all pairs of the N points z (n_ch, n_fit): the
-    number of independent Gaussian errors with the same spread of their mean square
-    (Var mean z^2 = 2 sum rho^2 / N^2). Correlations are estimated per channel pair and bin lag
-    (0..max_lag, within contiguous fitted windows)."""
-    nc, nf = z.shape
-    s2 = np.mean(z ** 2)
-    total = nf * np.sum(((z @ z.T) / nf / s2) ** 2)
-    for lag in range(1, max_lag + 1):
-        ok = np.flatnonzero(fit[lag:] - fit[:-lag] == lag)
-        if ok.size >= 5:
-            c = (z[:, ok] @ z[:, ok + lag].T) / ok.size / s2
-            total += 2 * ok.size * np.sum(c ** 2)
-    return (nc * nf) ** 2 / total
 
 
 def split_lines(case, cfg, keep, stats):

@@ -82,6 +82,8 @@ def score_case(name, truth, code, err, seconds, res, sizes):
             "kind": "effect" if truth["effects"] else ("ordinary" if truth["ordinary"] else "null"),
             "effects": effects, "found": [f"{f['physics']} {f['location']}" for f in found],
             "baseline_reduced_chi2": before.get("reduced_chi2"), "held_out_ratio": ratio,
+            # a right noise model's spread on the case's own points (nlp/diagnosis/spread.py)
+            "baseline_chi2_sd": before.get("reduced_chi2_sd"),
             # degrees of freedom of the baseline fit: objective = chi-square / 2
             "baseline_dof": (2 * before["objective"] / before["reduced_chi2"]
                              if before.get("reduced_chi2") and before.get("objective") else None)}
@@ -139,6 +141,14 @@ def summary(rows, sizes):
         print(f"  {route:12s} n={len(v):2d}  " + (f"median {np.median(v):.2f}  range {min(v):.2f}-"
                                                  f"{max(v):.2f}" if v else "-")
               + (f"  pooled {chi / dof:.2f} over {dof:.0f} degrees of freedom" if dof else ""))
+        sds = [(r["baseline_reduced_chi2"], r["baseline_chi2_sd"]) for r in quiet
+               if r["route"] == route and r.get("baseline_chi2_sd")
+               and r["baseline_reduced_chi2"] is not None]
+        if sds:
+            # not the criterion (0.8-1.3): how many a right noise model explains
+            print(f"  {'':12s} within 2 sampling SDs of 1 (the case's own spread): "
+                  f"{sum(abs(c - 1) <= 2 * sd for c, sd in sds)}/{len(sds)}; SDs "
+                  f"{min(sd for _, sd in sds):.2f}-{max(sd for _, sd in sds):.2f}")
     print("\ndetection limits: effects found with the right family and location, per size "
           "(size: the family's dimensionless measure; see SIZES in make_blind_benchmark.py)")
     table = defaultdict(lambda: defaultdict(list))
