@@ -90,7 +90,7 @@ def blind(folders):
     from noise_at_truth import smoothed_frf
     from nlp.case import assemble
     from nlp.config import load_case
-    from nlp.diagnose import _windows
+    from nlp.diagnosis.fitting import _windows
     pooled = {"package": [], "local rational": []}
     means = {"package": [], "local rational": []}
     for folder in folders:
@@ -156,7 +156,7 @@ def coherence(folders, per_bin=16, half=8):
     from noise_at_truth import true_frf, _At
     from nlp.case import assemble
     from nlp.config import load_case
-    from nlp.diagnose import _windows
+    from nlp.diagnosis.fitting import _windows
     L = 4096
     w = np.hanning(L + 1)[:-1]
     K = np.abs(np.fft.fft(w, L * per_bin)) ** 2

@@ -45,7 +45,7 @@ from noise_at_truth import _At, true_frf  # noqa: E402
 from nlp import noise as N  # noqa: E402
 from nlp.case import assemble  # noqa: E402
 from nlp.config import load_case  # noqa: E402
-from nlp.diagnose import _windows  # noqa: E402
+from nlp.diagnosis.fitting import _windows  # noqa: E402
 
 PACKAGE = N._robust_levels
 

@@ -46,7 +46,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from nlp.case import assemble  # noqa: E402
 from nlp.config import load_case  # noqa: E402
-from nlp.diagnose import _windows  # noqa: E402
+from nlp.diagnosis.fitting import _windows  # noqa: E402
 from nlp.diagnosis.spread import effective_points  # noqa: E402
 from nlp.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
                        welch_averages)

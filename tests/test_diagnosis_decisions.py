@@ -16,8 +16,8 @@ from scipy.linalg import eigh
 from conftest import shear_K
 from nlp.config import load_case
 from nlp.case import assemble
-from nlp.diagnose import (_classify, _decide, _normalised, _problem, _public, _repolish,
-                          _target, _windows, diagnose, noise_sigma)
+from nlp.diagnose import _classify, _decide, _public, _repolish, diagnose
+from nlp.diagnosis.fitting import _normalised, _problem, _target, _windows, noise_sigma
 from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, STRONG_BIC, dispersion,
                                     evidence,
                                     held_out_excess, held_out_ok, scaled_delta_bic, tied)
@@ -705,7 +705,8 @@ def test_candidates_ranked_high_on_the_other_test_are_refitted(tmp_path):
     other test's ranking adds it to the refits, so both tests take the same path.
     Here this test's own list is emptied: the coupling must come from the other test,
     whose score at its own baseline optimum ranks it first."""
-    from nlp.diagnose import _fit, _refits_of_others, _setup_others
+    from nlp.diagnose import _refits_of_others, _setup_others
+    from nlp.diagnosis.fitting import _fit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, _ = _frame(m, k)
@@ -765,7 +766,7 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
 
 def _baseline(cfg, starts=6):
     """The case's own general-C fit on its half-power windows (a short scatter search)."""
-    from nlp.diagnose import _search
+    from nlp.diagnosis.fitting import _search
     from nlp.search import SearchConfig
     case = assemble(cfg)
     fit = _windows(cfg, case, 1)
@@ -781,7 +782,7 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     structured refit (C = a0 M + story dashpots) fits as well as the general C, and its
     story dashpots stand within 4 of their own standard errors of the true ones (true
     c_s = a1 k_s + dashpot_s, the story pattern of a stiffness-proportional C)."""
-    from nlp.diagnose import _dashpot_refit
+    from nlp.diagnosis.inside import _dashpot_refit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
     M, C_r, K = _frame(m, k, zeta=0.01)
@@ -825,8 +826,8 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
     level does not (the rise is many times the price), and freeing one story's stiffness
     at a time names story 2: its refit takes nearly all of the rise (over 0.8 of it), the
     others under half."""
-    from nlp.diagnose import (_level_fit, _level_location, _release_location,
-                              _released_story, _shared_stiffness)
+    from nlp.diagnosis.levels import (_level_fit, _level_location, _release_location,
+                                      _released_story, _shared_stiffness)
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, K = _frame(m, k, zeta=0.015)
@@ -869,7 +870,7 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
     set of masses and stiffnesses for both levels is a chi-square of k = 5 degrees of
     freedom (k1-k3, m2, m3 free; m1 weighed): mean 5, SD of a mean of four 1.6. Its
     bound at the information-weighted set must come near that."""
-    from nlp.diagnose import _level_fit, _shared_stiffness
+    from nlp.diagnosis.levels import _level_fit, _shared_stiffness
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, K = _frame(m, k, zeta=0.015)
@@ -897,7 +898,7 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
 def test_a_release_location_needs_every_other_refit_converged():
     """An unconverged refit's drop is only a lower bound: the largest drop names its story
     only when the others converged, whichever converged itself."""
-    from nlp.diagnose import _released_story
+    from nlp.diagnosis.levels import _released_story
     assert _released_story([(5.0, True), (40.0, False), (9.0, True)]) == 1
     assert _released_story([(5.0, True), (40.0, True), (9.0, False)]) is None
     assert _released_story([(50.0, True), (40.0, True), (9.0, True)]) == 0
