@@ -945,3 +945,29 @@ def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
     # a best frequency away from every resonance needs no second candidate
     monkeypatch.setattr(D, "_score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
     assert len(D._scan_secondary(case, None, [], None)) == 2
+
+
+@pytest.mark.parametrize("residual", ["log_magnitude", "complex"])
+def test_signed_residuals_carry_the_objective_chi_square(tmp_path, residual):
+    """The spread of the baseline chi-square (diagnosis.spread) is read from _signed: its sum
+    of squares must be the chi-square the solver minimises (2 x objective), for the
+    log-magnitude residual and for the complex one (real and imaginary parts)."""
+    from nlp.diagnosis.fitting import _signed
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = _frame(m, k)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(4)))
+    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+                {"model": "rayleigh", "zeta": 0.015})
+    cfg = replace(cfg, objective=replace(cfg.objective, residual=residual))
+    case = assemble(cfg)
+    fit = _windows(cfg, case, 1)
+    sig = noise_sigma(case, fit)
+    pr = _problem(case, _target(case, fit, sig), optimize=False)
+    z = pr.z0
+    r = _signed(pr, z, case, fit, sig)
+    assert r.shape[0] == (6 if residual == "complex" else 3)
+    assert np.sum(r ** 2) == pytest.approx(2 * float(pr.objective(z)), rel=1e-6)
+    # and the residual map's mean square (ln|Ha/Hx|, or |ln(Ha/Hx)| / sqrt(2) with the phase,
+    # equal to first order in the misfit)
+    assert np.mean(r ** 2) == pytest.approx(np.mean(_normalised(pr, z, case, fit, sig) ** 2),
+                                            rel=1e-9 if residual == "log_magnitude" else 0.05)

@@ -122,12 +122,15 @@ def _refs(case):
 
 
 def _signed(problem, z, case, idx, sigma):
-    """Signed residuals over noise, (n_ch, n) or (2 n_ch, n) with the phase: the real and
-    imaginary parts of ln(Ha/Hx) / sigma, whose mean square is the objective's."""
-    d = np.log(problem.channel_frfs(z, 2 * np.pi * case.f[idx]) / case.H[:, idx])
+    """Signed residuals over noise, the objective's own (nlp/problem.py): (n_ch, n) of
+    ln|Ha/Hx| / sigma, or with the phase (2 n_ch, n) of the real and imaginary parts of
+    (Ha - Hx) / |Hx| / sigma. Their sum of squares is the chi-square (2 x objective)."""
+    Ha = problem.channel_frfs(z, 2 * np.pi * case.f[idx])
+    Hx = case.H[:, idx]
     if case.config.objective.residual == "complex":
-        return np.vstack([d.real, d.imag]) / np.vstack([sigma, sigma])
-    return d.real / sigma
+        d = (Ha - Hx) / np.abs(Hx) / sigma
+        return np.vstack([d.real, d.imag])
+    return np.log(np.abs(Ha / Hx)) / sigma
 
 
 def _quasi_se(pr, z, free=None):
