@@ -110,6 +110,38 @@ def test_concentrated_damper_from_the_fitted_damping(tmp_path):
     assert 8.0 < f["parameters"]["c12"] < 16.0
 
 
+@pytest.mark.slow  # two looks at one small case: 40-80 s on 2 cores
+def test_widened_look_after_a_finding_starts_from_the_first(tmp_path, monkeypatch):
+    """A coupling between floors 1 and 3, found in the first look. With the held-out rule
+    for widening after a finding lowered so that it fires, the case is looked at again over
+    3x wider windows: the first look's optima start that look (no second scatter search),
+    its finding is re-proven alone (one refit) before the other candidates, and it is kept
+    with its value (900 N/m within its uncertainty)."""
+    import nlp.diagnose as D
+    rng = np.random.default_rng(3)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, _ = _frame(m, k)
+    _write(tmp_path, "frf.npz", _accelerance(M, C, _coupled(k, 900.0), 1, rng))
+    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                {"model": "rayleigh", "zeta": 0.015})
+    searches, rounds, lines = [], [], []
+    search, refit_all = D._search, D._refit_all
+    monkeypatch.setattr(D, "_search", lambda *a, **kw: searches.append(1) or search(*a, **kw))
+    monkeypatch.setattr(D, "_refit_all", lambda jobs, sc: rounds.append((len(lines), len(jobs)))
+                        or refit_all(jobs, sc))
+    monkeypatch.setattr(D, "HELD_LEFT", 0.0)
+    res = diagnose(cfg, str(tmp_path / "out"), log=lines.append)
+    widened = [i for i, line in enumerate(lines) if "findings leave the held-out" in line]
+    assert widened, "the widened look after a finding did not run"
+    assert len(searches) == 1                 # the first look's baseline search only
+    wide = [n for at, n in rounds if at > widened[0]]
+    assert wide and wide[0] == 1, rounds      # the seeded round refits the finding alone
+    found = [(f["physics"], f["location"]) for f in res["findings"]]
+    assert ("nonadjacent_coupling", {"between": [1, 3]}) in found, res["summary"]
+    f = next(f for f in res["findings"] if f["physics"] == "nonadjacent_coupling")
+    assert abs(f["parameters"]["k13"] - 900.0) < 3 * f["uncertainty"]["k13"] + 30
+
+
 def test_damping_decomposition_recovers_story_dashpots():
     m, k = np.array([4.0, 5.0, 6.0, 5.0]), np.array([3000.0, 2500.0, 2000.0, 1500.0])
     M, K = np.diag(m), shear_K(k)
