@@ -4,9 +4,9 @@ import argparse
 import os
 import sys
 
-from .errors import InputError, SearchFailed
-from .executors import EXECUTORS
-from .outdir import check_writable, locked_folder, output_folder, prev_path
+from nlp.errors import InputError, SearchFailed
+from nlp.solve.executors import EXECUTORS
+from nlp.output.outdir import check_writable, locked_folder, output_folder, prev_path
 
 __all__ = ["main"]
 
@@ -20,13 +20,13 @@ def _out(args, default):
 
 
 def _run(args):
-    from .config import load_case
+    from nlp.case.load import load_case
 
     out = _out(args, "results")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": args.solver,
                                 "executor": args.executor, "scheduler": args.scheduler})
-    from .workflow import run
+    from nlp.workflow.update import run
     with output_folder(out, "run") as stage:
         status = run(cfg, stage, resume=args.resume, ckpt_out=out)
         stage.interrupted = status == 130
@@ -36,14 +36,14 @@ def _run(args):
 
 
 def _diagnose(args):
-    from .config import load_case
+    from nlp.case.load import load_case
 
     out = _out(args, "diagnosis")
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
                                 "workers": args.workers, "solver": None,
                                 "executor": args.executor, "scheduler": args.scheduler})
-    from .diagnose import diagnose
-    from .report import write_report
+    from nlp.diagnosis.driver import diagnose
+    from nlp.output.report import write_report
 
     with output_folder(out, "diagnose") as stage:
         diagnose(cfg, stage)
@@ -53,8 +53,8 @@ def _diagnose(args):
 
 
 def _batch(args):
-    from .batch import find_records, run_batch
-    from .config import load_case
+    from nlp.monitoring.campaign import find_records, run_batch
+    from nlp.case.load import load_case
 
     cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": args.workers,
                                 "solver": None, "executor": args.executor,
@@ -65,7 +65,7 @@ def _batch(args):
 
 
 def _report(args):
-    from .report import write_report
+    from nlp.output.report import write_report
 
     with locked_folder(os.path.abspath(args.dir)) as d:
         print(f"wrote {write_report(d)}")
@@ -93,7 +93,7 @@ def _executor_arguments(p, what):
 
 
 def _parser():
-    from . import __version__
+    from nlp import __version__
 
     ap = argparse.ArgumentParser(prog="frf-nlp", description="FRF-based model updating "
                                  "with general viscous damping (CasADi NLP).", epilog=_EPILOG,

@@ -34,11 +34,11 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from nlp.case import assemble, build_problem
-from nlp.config import load_case
-from nlp.frf import channel_frfs
-from nlp.problem import LocalResult
-from nlp.search import SearchConfig, scatter_search
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.load import load_case
+from nlp.frf.reference import channel_frfs
+from nlp.solve.problem import LocalResult
+from nlp.solve.search import SearchConfig, scatter_search
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_CASE = os.path.join(HERE, "..", "cases", "four_story_shear_frame", "case.yaml")

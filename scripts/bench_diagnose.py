@@ -17,8 +17,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from make_benchmark import make_case  # noqa: E402
 
-from nlp.config import load_case  # noqa: E402
-from nlp.diagnose import diagnose  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
+from nlp.diagnosis.driver import diagnose  # noqa: E402
 
 
 def main():

@@ -13,12 +13,12 @@ import time
 
 import numpy as np
 
-from nlp.case import assemble, build_problem
-from nlp.config import load_case
-from nlp.report import write_report
-from nlp.search import SearchConfig, scatter_search
-from nlp.verify import replay
-from nlp.workflow import run
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.load import load_case
+from nlp.output.report import write_report
+from nlp.solve.search import SearchConfig, scatter_search
+from nlp.workflow.verify import replay
+from nlp.workflow.update import run
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

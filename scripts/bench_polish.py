@@ -17,10 +17,10 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from nlp import diagnose as dg  # noqa: E402
-from nlp import problem as pm  # noqa: E402
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
+from nlp.diagnosis import driver as dg  # noqa: E402
+from nlp.solve import problem as pm  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
 
 
 def run(label, case, target, solves):

@@ -23,7 +23,7 @@ Run:  python scripts/bench_scale.py [--sizes 4 8 16 ...] [--starts 3] [--seed 0]
 error against the case folder's truth.json: {"alpha": {name: relative change}} or
 {name: physical value}). With search.band_continuation its continuation start
 competes (not counted in the median solve). A reduced-backend case is then re-centred as `frf-nlp run`
-does (nlp.recentre): its passes' local-solve times and the final reduced-vs-exact
+does (nlp.workflow.recentre): its passes' local-solve times and the final reduced-vs-exact
 FRF error are printed under its row, and its parameter error is the re-centred one.
 """
 
@@ -39,12 +39,12 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
-from nlp.damping import RayleighDamping  # noqa: E402
-from nlp.frf_backends import reduced  # noqa: E402
-from nlp.frf_backends.system import LinearSystem  # noqa: E402
-from nlp.model import shear_frame  # noqa: E402
-from nlp.parameters import Parameter, ParameterSet  # noqa: E402
-from nlp.problem import Channel, Target, UpdatingProblem  # noqa: E402
+from nlp.model.damping import RayleighDamping  # noqa: E402
+from nlp.frf.backends import reduced  # noqa: E402
+from nlp.frf.backends.system import LinearSystem  # noqa: E402
+from nlp.model.nominal import shear_frame  # noqa: E402
+from nlp.model.parameters import Parameter, ParameterSet  # noqa: E402
+from nlp.solve.problem import Channel, Target, UpdatingProblem  # noqa: E402
 
 SIZES = (4, 8, 16, 32, 64, 128, 256, 512, 1000, 2000)
 GROUPS = 8
@@ -135,7 +135,7 @@ def run_frame(n, args):
     model, damping, params, target, truth, backend = frame_problem(n, args.seed, args.backend)
     def build_frame():
         basis = None
-        if backend == "reduced":  # fixed basis from the nominal model (nlp.frf_backends.reduced)
+        if backend == "reduced":  # fixed basis from the nominal model (nlp.frf.backends.reduced)
             full = LinearSystem.from_model(model, damping, target)
             basis = reduced.basis(full, float(target.omega.max()))
         return UpdatingProblem(model, damping, params, target, frf_backend=backend, basis=basis)
@@ -154,21 +154,21 @@ def run_frame(n, args):
 
 
 def run_case(path, args):
-    from nlp.case import assemble, build_problem
-    from nlp.config import load_case
+    from nlp.case.assemble import assemble, build_problem
+    from nlp.case.load import load_case
     case = assemble(load_case(path))
     problem, build = cold_build(lambda: build_problem(case))
     results = [problem.solve(z) for z in starts(problem, args.starts, args.seed)]
     best = min(results, key=lambda r: r.f)
     if case.config.search.band_continuation:  # as frf-nlp run does: one more start
-        from nlp.continuation import band_continuation
+        from nlp.solve.continuation import band_continuation
         c_problem, c_res = band_continuation(case, case.config.search.band_continuation,
                                              log=lambda m: None)
         if c_res.success and c_res.f < best.f:
             problem, best = c_problem, c_res
     recentred = None
     if problem.backend == "reduced":  # as frf-nlp run does: re-centre the basis on the fit
-        from nlp.recentre import recentre
+        from nlp.workflow.recentre import recentre
         problem, best, recentred = recentre(case, problem, best, log=lambda m: None)
     err = float("nan")
     truth_file = os.path.join(os.path.dirname(os.path.abspath(path)), "truth.json")

@@ -24,10 +24,10 @@ import time
 
 import numpy as np
 
-from nlp.case import assemble, build_problem
-from nlp.config import load_case
-from nlp.executors import Setup, make_executor
-from nlp.search import SearchConfig, pick_starts, scatter_search
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.load import load_case
+from nlp.solve.executors import Setup, make_executor
+from nlp.solve.search import SearchConfig, pick_starts, scatter_search
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

@@ -20,8 +20,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
-from nlp.case import assemble
-from nlp.config import load_case
+from nlp.case.assemble import assemble
+from nlp.case.load import load_case
 
 _POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 

@@ -36,11 +36,11 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
 import make_blind_benchmark as gen  # noqa: E402
-from nlp import noise as N  # noqa: E402
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
+from nlp.frf import noise as N  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.fitting import _problem, _search, _target, _windows, noise_sigma  # noqa: E402
-from nlp.search import SearchConfig  # noqa: E402
+from nlp.solve.search import SearchConfig  # noqa: E402
 
 CASE = 62
 

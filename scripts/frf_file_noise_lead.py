@@ -8,7 +8,7 @@ rational fit, against the scatter of third differences that the package uses.
 
 For each blind null FRF file (truth.json beside case.yaml) it compares ln|H| with the
 truth seen through the Hann power kernel (scripts/noise_at_truth.py) at the fitted
-points, over two sigmas: the package's (nlp.noise.noise_model) and the local rational
+points, over two sigmas: the package's (nlp.frf.noise.noise_model) and the local rational
 one below plus LEAKAGE share 0.1 of the squared resolution bias. It prints each file's
 mean z^2, then the pooled median and tails, which for a right sigma are those of
 chi-square(1): median 0.455, 4.55 % above 4, 0.27 % above 9.
@@ -39,7 +39,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
-from nlp import noise as N  # noqa: E402
+from nlp.frf import noise as N  # noqa: E402
 
 LEAKAGE = 0.1
 HALF_WIDTH = 4
@@ -88,8 +88,8 @@ def lead_var(f, H, window="hann"):
 
 def blind(folders):
     from noise_at_truth import smoothed_frf
-    from nlp.case import assemble
-    from nlp.config import load_case
+    from nlp.case.assemble import assemble
+    from nlp.case.load import load_case
     from nlp.diagnosis.fitting import _windows
     pooled = {"package": [], "local rational": []}
     means = {"package": [], "local rational": []}
@@ -154,8 +154,8 @@ def coherence(folders, per_bin=16, half=8):
     (1 - g^2) / g^2, at the fitted points where the prediction exceeds 0.02 (leakage
     dominates)."""
     from noise_at_truth import true_frf, _At
-    from nlp.case import assemble
-    from nlp.config import load_case
+    from nlp.case.assemble import assemble
+    from nlp.case.load import load_case
     from nlp.diagnosis.fitting import _windows
     L = 4096
     w = np.hanning(L + 1)[:-1]

@@ -7,7 +7,7 @@ is printed with sigma from:
 
 * ``coherence``: the coherence variance of the ``coherent`` file (the noise measured from the
   records);
-* ``package``: the file's own scatter as the package reads it (``nlp.noise.spaced_scatter``,
+* ``package``: the file's own scatter as the package reads it (``nlp.frf.noise.spaced_scatter``,
   the robust level over 2 x 25 + 1 differences);
 * variants of that level, not in the package: half-widths 12 and 50; a trimmed mean of the
   squared differences (20 %, 30 % trimmed) in place of the median absolute deviation; one level
@@ -42,9 +42,9 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
 from noise_at_truth import _At, true_frf  # noqa: E402
-from nlp import noise as N  # noqa: E402
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
+from nlp.frf import noise as N  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.fitting import _windows  # noqa: E402
 
 PACKAGE = N._robust_levels

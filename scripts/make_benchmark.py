@@ -19,9 +19,9 @@ import os
 import numpy as np
 import yaml
 
-from nlp.damping import rayleigh_from_ratios
-from nlp.model import shear_stiffness
-from nlp.simulate import simulate
+from nlp.model.damping import rayleigh_from_ratios
+from nlp.model.nominal import shear_stiffness
+from nlp.frf.simulate import simulate
 
 FS = 60.0
 SECONDS = 900.0

@@ -16,7 +16,7 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
-from nlp import config  # noqa: E402
+from nlp.case import load as config  # noqa: E402
 
 OUT = os.path.join(HERE, "..", "docs", "case_reference.md")
 SECTIONS = (("(top level)", "CaseConfig"), ("model", "ModelConfig"),

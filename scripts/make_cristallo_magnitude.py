@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 
-from nlp.readers import read_frf
+from nlp.io.readers import read_frf
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.join(HERE, "..", "cases", "cristallo_three_storey", "Experimental.csv")

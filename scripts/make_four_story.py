@@ -14,9 +14,9 @@ import os
 
 import numpy as np
 
-from nlp.damping import rayleigh_from_ratios
-from nlp.frf import frf_dynamic_stiffness, modal_parameters
-from nlp.model import shear_stiffness
+from nlp.model.damping import rayleigh_from_ratios
+from nlp.frf.reference import frf_dynamic_stiffness, modal_parameters
+from nlp.model.nominal import shear_stiffness
 
 MASSES = np.array([5.16, 5.15, 4.94, 5.14])                # kg, Table 1 average row
 STIFFNESSES = np.array([1054.98, 1284.19, 1377.13, 2738.17])  # N/m, Table 1 average row

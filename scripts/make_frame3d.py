@@ -24,7 +24,7 @@ import scipy.io
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from nlp.importers.opensees import assemble_script
+from nlp.io.importers.opensees import assemble_script
 from sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))

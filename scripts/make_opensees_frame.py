@@ -19,7 +19,7 @@ import os
 import numpy as np
 import scipy.linalg as sla
 
-from nlp.importers.opensees import assemble_script
+from nlp.io.importers.opensees import assemble_script
 from sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -19,9 +19,9 @@ import numpy as np
 from scipy.signal import chirp
 
 from make_four_story import MASSES, STIFFNESSES, true_damping
-from nlp.frf import modal_parameters
-from nlp.model import shear_stiffness
-from nlp.simulate import simulate
+from nlp.frf.reference import modal_parameters
+from nlp.model.nominal import shear_stiffness
+from nlp.frf.simulate import simulate
 
 G = 9.80665
 FS = 200.0

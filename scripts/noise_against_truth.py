@@ -53,8 +53,8 @@ def true_frf(M, C, K, omega, channels, excitation, force_dof):
 
 
 def case_z2(folder):
-    from nlp.case import assemble
-    from nlp.config import load_case
+    from nlp.case.assemble import assemble
+    from nlp.case.load import load_case
 
     cfg = load_case(os.path.join(folder, "case.yaml"))
     case = assemble(cfg)

@@ -9,7 +9,7 @@ those matrices, independently of the package's FRF code:
 * force at floor p: q = (K + j Kh - w^2 M + j w C)^-1 e_p; accelerometers -w^2 q, LVDTs q.
 
 Then z = ln|H_estimate / H_true| / sigma at every point, with sigma from the case's own
-noise model (``nlp.noise.sigma_ln``). If the model is right, mean z^2 is 1 wherever it is
+noise model (``nlp.frf.noise.sigma_ln``). If the model is right, mean z^2 is 1 wherever it is
 taken. Printed: mean and median z^2 on the fitted half-power windows, on the held-out
 shoulders (windows 3x wider, minus the fitted ones) and over the whole band, and the median
 ratio of the local error (RMS over 21 points) to sigma in the tenth of points where |H| is
@@ -44,11 +44,11 @@ from scipy.ndimage import uniform_filter1d
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.fitting import _windows  # noqa: E402
 from nlp.diagnosis.spread import effective_points  # noqa: E402
-from nlp.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
+from nlp.frf.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
                        welch_averages)
 
 

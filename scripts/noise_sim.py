@@ -214,10 +214,10 @@ def reduced_chi2(path, starts=8):
     freedom, the noise model and the case."""
     from dataclasses import replace
 
-    from nlp import noise
-    from nlp.case import assemble, build_problem
-    from nlp.config import load_case
-    from nlp.search import SearchConfig, scatter_search
+    from nlp.frf import noise
+    from nlp.case.assemble import assemble, build_problem
+    from nlp.case.load import load_case
+    from nlp.solve.search import SearchConfig, scatter_search
 
     case = assemble(load_case(path))
     sig = noise.sigma_ln(case, case.selected)

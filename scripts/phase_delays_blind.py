@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 
-from nlp import diagnose as D
-from nlp.case import assemble
-from nlp.config import load_case
+from nlp.diagnosis import driver as D
+from nlp.case.assemble import assemble
+from nlp.case.load import load_case
 from nlp.diagnosis.phase import delay_check
-from nlp.search import SearchConfig
+from nlp.solve.search import SearchConfig
 
 
 def main(paths):

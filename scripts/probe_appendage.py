@@ -19,11 +19,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-import nlp.diagnose as D  # noqa: E402
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
-from nlp.physics import SecondaryOscillator  # noqa: E402
-from nlp.search import SearchConfig  # noqa: E402
+import nlp.diagnosis.driver as D  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
+from nlp.diagnosis.families import SecondaryOscillator  # noqa: E402
+from nlp.solve.search import SearchConfig  # noqa: E402
 
 
 def main(argv=None):

@@ -16,8 +16,8 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
-from nlp.config import load_case
-from nlp.diagnose import diagnose
+from nlp.case.load import load_case
+from nlp.diagnosis.driver import diagnose
 
 
 def _same_location(a, b):

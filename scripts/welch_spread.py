@@ -22,8 +22,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 import noise_sim as ns  # noqa: E402
-from nlp.case import assemble  # noqa: E402
-from nlp.config import load_case  # noqa: E402
+from nlp.case.assemble import assemble  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
 
 
 def mean_z2(seed, seconds, zeta):

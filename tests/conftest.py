@@ -10,7 +10,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "scripts"))
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "scripts"))
+for _d in ("", "case", "diagnosis"):
+    sys.path.insert(0, os.path.join(HERE, _d))
 
 # shear-frame stiffness written independently of the package (one copy, with the
 # independent simulator of the noise tests)
@@ -23,7 +26,7 @@ TABLE1_INITIAL_K = np.array([1019.0, 1217.0, 1420.0, 2473.0])
 def frame_parameter_set(m, k, damping):
     """ParameterSet of a shear frame: free story stiffness changes, fixed masses, and the
     damping model's own parameters (for tests that build an UpdatingProblem by hand)."""
-    from nlp.parameters import Parameter, ParameterSet
+    from nlp.model.parameters import Parameter, ParameterSet
 
     n = len(k)
     ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=k[i]) for i in range(n)]

@@ -1,4 +1,4 @@
-"""Decision pieces of :mod:`nlp.diagnose`, one concept per module.
+"""Decision pieces of :mod:`nlp.diagnosis.driver`, one concept per module.
 
 * :mod:`.evidence` - quasi-likelihood evidence, significance, ties, agreement between tests;
 * :mod:`.priors` - fitted parameters against their stated prior, damping decomposition;

@@ -29,7 +29,7 @@ def local_sigma(L, half=32, d2_factor=6.0):
 
     L : (n_ch, n_f) ln|H|. d2_factor : variance of a second difference of the errors in
     units of their point variance, 6 for independent bins, 2.5 for a Hann-windowed
-    estimate (nlp.noise.second_difference_factor): with correlated bins the second
+    estimate (nlp.frf.noise.second_difference_factor): with correlated bins the second
     differences understate the point noise, and a 5-sigma peak test read with 6 would
     be a 3.2-sigma one. The moving median ignores a narrow resonance, whose second
     differences are large only over a few points.

@@ -2,7 +2,7 @@
 
 The baseline and every candidate refit share these pieces: a target whose residuals are
 divided by the route's noise level (so the objective is half a chi-square), the NLP of
-:mod:`nlp.problem` with the candidate's physics added, a scatter search over it, and the
+:mod:`nlp.solve.problem` with the candidate's physics added, a scatter search over it, and the
 fitted half-power windows (the held-out shoulders are the same windows widened).
 """
 
@@ -10,12 +10,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..case import _half_power
-from ..noise import sigma_ln
-from ..physics import extend_parameters, references
-from ..problem import SolverConfig, Target, UpdatingProblem
-from ..search import scatter_search
-from .evidence import quasi_covariance
+from nlp.case.assemble import _half_power
+from nlp.frf.noise import sigma_ln
+from nlp.diagnosis.families import extend_parameters, references
+from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
+from nlp.solve.search import scatter_search
+from nlp.diagnosis.evidence import quasi_covariance
 
 
 # ---------------------------------------------------------------------- noise
@@ -96,7 +96,7 @@ def _search(problem, config, setup=None):
     crawls along a weakly determined direction until its iteration limit), the lowest
     objective reached is used, as every f is a true evaluation at a feasible point, and
     converged is False (diagnosis.json says so)."""
-    from ..errors import SearchFailed
+    from nlp.errors import SearchFailed
     kept = _Kept()
     try:
         return scatter_search(problem, config, progress=None, checkpoint=kept,

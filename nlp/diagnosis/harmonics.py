@@ -29,7 +29,7 @@ import math
 import numpy as np
 from scipy.signal import get_window
 
-from ..frf import BASE_DOF
+from nlp.frf.reference import BASE_DOF
 
 __all__ = ["story_vectors", "force_frfs", "out_of_band", "harmonic_location",
            "MIN_EXCESS_Z", "MIN_SHARE", "MIN_GAP"]
@@ -91,7 +91,7 @@ def out_of_band(f, U, f_top, fs, frac=1e-2, margin=1.05, nyquist_use=0.8):
 def harmonic_location(tests, M, C, K, B, channels, f_top):
     """Which internal force pattern explains the out-of-band response of the tests.
 
-    tests : iterable of (records, H_model) with records an nlp.readers.TimeHistories (SI,
+    tests : iterable of (records, H_model) with records an nlp.io.readers.TimeHistories (SI,
         ``__input__`` and one record per channel name) and H_model(omega) -> (n_ch, N) the
         linear model's channel FRFs; plus ``nperseg`` and ``window`` attributes of the
         estimate, given as keys "nperseg" (int or None for the whole record), "window".

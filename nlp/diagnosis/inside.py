@@ -10,14 +10,14 @@ import math
 
 import numpy as np
 
-from .fitting import _fit, _problem, _quasi_se
+from nlp.diagnosis.fitting import _fit, _problem, _quasi_se
 
 
 def _inside_model_class(cfg, case, state, absorbed, log):
     """Parameters far outside their prior, concentrated dampers in the fitted C, and
     the absorbed candidates that the fitted parameters actually point at."""
-    from ..damping import GeneralDamping
-    from .priors import damper_check, floor_of_mass, prior_check, prior_sigmas
+    from nlp.model.damping import GeneralDamping
+    from nlp.diagnosis.priors import damper_check, floor_of_mass, prior_check, prior_sigmas
     pr, z = state["problem"], state["z"]
     se, cov = _quasi_se(pr, z)
     theta = pr.theta(z)
@@ -116,7 +116,7 @@ def _inside_model_class(cfg, case, state, absorbed, log):
 
 
 def _dashpot_refit(case, state):
-    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.dashpot_damping`).
+    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.assemble.dashpot_damping`).
 
     A general C has n (n + 1) / 2 parameters, and a decomposition of its point estimate
     carries all their scatter (blind seed 601329: five true dampers missed, two nulls'
@@ -125,8 +125,8 @@ def _dashpot_refit(case, state):
     ln N, as in BIC), its story dashpots are estimated directly, with their own errors.
     Starts: the non-negative decomposition of the fitted general C, and Rayleigh.
     """
-    from ..case import dashpot_damping
-    from .priors import decompose_damping
+    from nlp.case.assemble import dashpot_damping
+    from nlp.diagnosis.priors import decompose_damping
     pr, z = state["problem"], state["z"]
     damping, params = dashpot_damping(case)
     pd = _problem(case, pr.target, state["current"], optimize=False, damping=(damping, params))

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
-from ..case import _half_power, assemble
-from ..search import SearchConfig
-from .fitting import _fit, _normalised, _problem, _quasi_se, _search, _target, noise_sigma
+from nlp.case.assemble import _half_power, assemble
+from nlp.solve.search import SearchConfig
+from nlp.diagnosis.fitting import _fit, _normalised, _problem, _quasi_se, _search, _target, noise_sigma
 
 
 def _level_fit(cfg, path, z_start=None):
@@ -22,7 +22,7 @@ def _level_fit(cfg, path, z_start=None):
     optimum), so that the equivalent model of a level is not a local minimum
     or stuck on a bound.
     """
-    from ..frf import modal_parameters
+    from nlp.frf.reference import modal_parameters
     c = assemble(cfg, data_file=path)
     sig = noise_sigma(c, c.selected)
     tg = _target(c, c.selected, sig)
@@ -416,7 +416,7 @@ def _nonlinear_statement(i, rel, zs, shift, harm):
 def _harmonics(cfg, fits):
     """Out-of-band harmonics of the level tests (:mod:`nlp.diagnosis.harmonics`), located
     on the story patterns of the reference level's model; None without time records."""
-    from .harmonics import harmonic_location, story_vectors
+    from nlp.diagnosis.harmonics import harmonic_location, story_vectors
     ref = fits[0]
     if ref["case"].records is None:
         return None

@@ -18,13 +18,13 @@ reported when the best location meets the evidence rules of :mod:`.evidence`
 errors from zero) and explains a real part of the phase misfit. Locations within
 BIC_TIE of the best are reported as not told apart.
 
-This module holds the decision on the refits; :func:`nlp.diagnose._loss_check`
+This module holds the decision on the refits; :func:`nlp.diagnosis.driver._loss_check`
 builds and solves them.
 """
 
 import numpy as np
 
-from .evidence import BIC_ACCEPT, BIC_TIE, SIGNIFICANCE, scaled_delta_bic
+from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, SIGNIFICANCE, scaled_delta_bic
 
 __all__ = ["MAX_POINTS", "MAX_SIGMA", "LOSS_Z", "EXPLAINED", "band_points", "loss_row",
            "loss_decision"]

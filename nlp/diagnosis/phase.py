@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .evidence import BIC_ACCEPT, SIGNIFICANCE
+from nlp.diagnosis.evidence import BIC_ACCEPT, SIGNIFICANCE
 
 __all__ = ["wrap", "fit_delay", "delay_check", "TAU_MAX", "MIN_PHASE", "EXPLAINED"]
 

@@ -155,7 +155,7 @@ def _excess(C, M, K, leave_out=None):
 def damper_check(problem, z, cov_z):
     """Concentrated dampers in the fitted C of a shear frame.
 
-    problem : nlp.problem.UpdatingProblem (its numeric matrices(z)); cov_z : covariance
+    problem : nlp.solve.problem.UpdatingProblem (its numeric matrices(z)); cov_z : covariance
     of z. The errors of the excess are propagated by central differences.
     Returns (decomposition dict, list of flagged stories with excess [N s/m] and SE).
     """

@@ -22,7 +22,7 @@ in its place).
 import numpy as np
 from scipy import signal
 
-from ..frf import modal_parameters
+from nlp.frf.reference import modal_parameters
 
 __all__ = ["estimate_resolution", "appendage_split", "resolved", "damping_pinned"]
 

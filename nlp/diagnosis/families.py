@@ -1,0 +1,322 @@
+"""Candidate missing physics: parametric enrichments of M, C, K, extra DOFs, outputs.
+
+Each family is a small frozen dataclass with its parameters (names, start,
+bounds, scale, and the "null" value at which it has no effect) and one of
+
+* ``apply(sys, th)``: change the structural system ``sys`` = dict(M, K, C, Kh)
+  of CasADi SX matrices, where the dynamic stiffness is
+  Z = K - w^2 M + j (w C + Kh) (Kh: hysteretic part); extra DOFs are appended
+  after the floors, so floor indices do not move;
+* ``output(hr, hi, w, th)``: change one channel's FRF (sensor families).
+
+The same CasADi FRF and NLP (:mod:`nlp.solve.problem`) then fit them. Floors are
+numbered 1..n from the ground up in names and locations; 0 is the ground.
+"""
+
+from dataclasses import dataclass, field
+import math
+
+import casadi as ca
+
+__all__ = ["FAMILIES", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
+           "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay"]
+
+
+def _spring(A, i, j, v):
+    """Add v (e_i - e_j)(e_i - e_j)^T; index None is the ground."""
+    A = ca.SX(A)
+    for a, sa in ((i, 1), (j, -1)):
+        for b, sb in ((i, 1), (j, -1)):
+            if a is not None and b is not None:
+                A[a, b] = A[a, b] + sa * sb * v
+    return A
+
+
+def _augment(A, couple, diag):
+    """Append one DOF: A -> [[A, couple], [couple^T, diag]]."""
+    return ca.vertcat(ca.horzcat(A, couple), ca.horzcat(couple.T, diag))
+
+
+@dataclass(frozen=True)
+class AddedMass:
+    """Unmodelled mass dm [kg] at a floor (equipment)."""
+
+    floor: int
+    family = "added_mass"
+
+    @property
+    def names(self):
+        return (f"dm{self.floor}",)
+
+    def spec(self, ref):
+        m = ref["m_ref"]
+        return {"initial": [0.0], "lower": [-0.5 * m], "upper": [2.0 * m], "scale": [0.1 * m],
+                "null": [0.0]}
+
+    @property
+    def location(self):
+        return {"floor": self.floor}
+
+    def apply(self, sys, th, ref):
+        i = self.floor - 1
+        M = ca.SX(sys["M"])
+        M[i, i] = M[i, i] + th[0]
+        return {**sys, "M": M}
+
+
+@dataclass(frozen=True)
+class BaseFlexibility:
+    """A base DOF between ground and structure: mass m_b, sway spring k_b, dashpot c_b.
+
+    Every ground connection of the structure is re-routed through the base.
+    Parameters: base mass [kg], base-to-first-floor stiffness ratio k_b/k_ref
+    (log10) and base dashpot [N s/m].
+    """
+
+    family = "base_flexibility"
+
+    names = ("m_base", "log10_kb", "c_base")
+
+    @property
+    def location(self):
+        return {}
+
+    def spec(self, ref):
+        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), ref["c_ref"]
+        return {"initial": [0.5 * m, lk + 1.0, c], "lower": [0.0, lk - 1.0, 0.0],
+                "upper": [5.0 * m, lk + 4.0, 50.0 * c], "scale": [m, 1.0, c],
+                "null": [0.0, lk + 6.0, 0.0]}
+
+    def starts(self, ref):
+        """Start points spread over the base stiffness (the fit has many local minima)."""
+        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), ref["c_ref"]
+        return [[0.5 * m, lk + d, c] for d in (-0.3, 0.0, 0.5, 1.0, 1.5)]
+
+    def apply(self, sys, th, ref):
+        M, K, C, Kh = (ca.SX(sys[k]) for k in ("M", "K", "C", "Kh"))
+        n = M.shape[0]
+        one = ca.DM.ones(n)
+        kb = 10 ** th[1]
+        gK, gC, gH = ca.mtimes(K, one), ca.mtimes(C, one), ca.mtimes(Kh, one)
+        return {"M": _augment(M, ca.SX.zeros(n), th[0]),
+                "K": _augment(K, -gK, ca.sum1(gK) + kb),
+                "C": _augment(C, -gC, ca.sum1(gC) + th[2]),
+                "Kh": _augment(Kh, -gH, ca.sum1(gH))}
+
+
+ZETA_S_MIN = 0.001   # lower bound of an appendage's damping ratio in its fit
+
+
+@dataclass(frozen=True)
+class SecondaryOscillator:
+    """An appendage at a floor: mass ratio mu (to m_ref), frequency f_s [Hz], damping zeta_s.
+
+    resonances : frequencies [Hz] of resonances the current model lacks (extra modes
+    of the whole band); refits also start there. Not part of the candidate's identity.
+    """
+
+    floor: int
+    f0: float = 1.0
+    resonances: tuple = field(default=(), repr=False, compare=False)
+    family = "secondary_oscillator"
+
+    @property
+    def names(self):
+        return (f"mu{self.floor}", f"f_s{self.floor}", f"zeta_s{self.floor}")
+
+    @property
+    def location(self):
+        return {"floor": self.floor}
+
+    def spec(self, ref):
+        return {"initial": [0.02, self.f0, 0.02], "lower": [0.0, 0.5 * self.f0, ZETA_S_MIN],
+                "upper": [0.5, 2.0 * self.f0, 0.3], "scale": [0.01, 0.1 * self.f0, 0.01],
+                "null": [0.0, self.f0, 0.02]}
+
+    def starts(self, ref):
+        """A light, lightly damped appendage tuned to each unexplained resonance inside
+        the frequency box: the scan's best frequency is a first-order guess, and a refit
+        from there can stop in a broad, heavily damped minimum (retired 84960/13: f_s
+        8.17 Hz, zeta_s 0.14, against a true 9.15 Hz where the data peak at 9.52 Hz)."""
+        return [[0.01, f, 0.02] for f in sorted(set(self.resonances))
+                if 0.5 * self.f0 < f < 2.0 * self.f0 and abs(f / self.f0 - 1.0) > 0.02]
+
+    def apply(self, sys, th, ref):
+        m_ref = ref["m_ref"]
+        M, K, C, Kh = (ca.SX(sys[k]) for k in ("M", "K", "C", "Kh"))
+        n = M.shape[0]
+        i = self.floor - 1
+        ms = th[0] * m_ref
+        ws = 2 * math.pi * th[1]
+        ks, cs = ms * ws**2, 2 * th[2] * ms * ws
+        e = ca.DM.zeros(n)
+        e[i] = 1
+
+        def attach(A, v):
+            A = ca.SX(A)
+            A[i, i] = A[i, i] + v
+            return _augment(A, -v * e, v)
+
+        return {"M": _augment(M, ca.SX.zeros(n), ms), "K": attach(K, ks), "C": attach(C, cs),
+                "Kh": _augment(Kh, ca.SX.zeros(n), 0)}
+
+
+@dataclass(frozen=True)
+class LocalDamper:
+    """A dashpot c [N s/m] between floors (i, j); j = 0 is the ground."""
+
+    i: int
+    j: int
+    family = "local_damper"
+
+    @property
+    def names(self):
+        return (f"c{self.j}{self.i}",)
+
+    @property
+    def location(self):
+        return {"between": [self.j, self.i]}
+
+    def spec(self, ref):
+        c = ref["c_ref"]
+        return {"initial": [0.0], "lower": [0.0], "upper": [50.0 * c], "scale": [c],
+                "null": [0.0]}
+
+    def apply(self, sys, th, ref):
+        j = None if self.j == 0 else self.j - 1
+        return {**sys, "C": _spring(sys["C"], self.i - 1, j, th[0])}
+
+
+@dataclass(frozen=True)
+class HystereticDamping:
+    """Frequency-independent loss: Kh = eta K (global) or eta K_story (one story)."""
+
+    story: int = None
+    family = "hysteretic_damping"
+
+    @property
+    def names(self):
+        return ("eta",) if self.story is None else (f"eta{self.story}",)
+
+    @property
+    def location(self):
+        return {} if self.story is None else {"between": [self.story - 1, self.story]}
+
+    def spec(self, ref):
+        return {"initial": [0.0], "lower": [0.0], "upper": [0.2], "scale": [0.01], "null": [0.0]}
+
+    def apply(self, sys, th, ref):
+        n = ref["K_parts"][0].shape[0]
+        Ks = sys["K"][:n, :n] if self.story is None else ref["K_parts"][self.story - 1]
+        Kh = ca.SX(sys["Kh"])
+        Kh[:n, :n] = Kh[:n, :n] + th[0] * Ks
+        return {**sys, "Kh": Kh}
+
+
+@dataclass(frozen=True)
+class NonadjacentCoupling:
+    """A spring k [N/m] between non-adjacent floors i < j (non-shear behaviour)."""
+
+    i: int
+    j: int
+    family = "nonadjacent_coupling"
+
+    @property
+    def names(self):
+        return (f"k{self.i}{self.j}",)
+
+    @property
+    def location(self):
+        return {"between": [self.i, self.j]}
+
+    def spec(self, ref):
+        # a brace over two stories can be as stiff as a story or more: an upper bound of half
+        # a story held the largest blind couplings on it (retired 799498/29: k13 at 0.5 k_ref,
+        # dBIC -912,609, held-out 839 -> 1.25, refused for lying on its bound)
+        k = ref["k_ref"]
+        return {"initial": [0.0], "lower": [-0.5 * k], "upper": [2.0 * k], "scale": [0.05 * k],
+                "null": [0.0]}
+
+    def apply(self, sys, th, ref):
+        return {**sys, "K": _spring(sys["K"], self.i - 1, self.j - 1, th[0])}
+
+
+@dataclass(frozen=True)
+class SensorGain:
+    """A calibration error on one channel: H -> (1 + g) H."""
+
+    channel: str
+    family = "sensor_gain"
+
+    @property
+    def names(self):
+        return (f"gain_{self.channel}",)
+
+    @property
+    def location(self):
+        return {"channel": self.channel}
+
+    def spec(self, ref):
+        return {"initial": [0.0], "lower": [-0.5], "upper": [1.0], "scale": [0.05], "null": [0.0]}
+
+    def output(self, hr, hi, w, th):
+        return (1 + th[0]) * hr, (1 + th[0]) * hi
+
+
+@dataclass(frozen=True)
+class SensorDelay:
+    """A time delay tau [ms] on one channel: H -> H exp(-j w tau)."""
+
+    channel: str
+    family = "sensor_delay"
+
+    @property
+    def names(self):
+        return (f"delay_ms_{self.channel}",)
+
+    @property
+    def location(self):
+        return {"channel": self.channel}
+
+    def spec(self, ref):
+        return {"initial": [0.0], "lower": [-50.0], "upper": [50.0], "scale": [1.0], "null": [0.0]}
+
+    def output(self, hr, hi, w, th):
+        ph = -w * th[0] * 1e-3
+        c, s = ca.cos(ph), ca.sin(ph)
+        return hr * c - hi * s, hr * s + hi * c
+
+
+FAMILIES = ("added_mass", "base_flexibility", "secondary_oscillator", "local_damper",
+            "hysteretic_damping", "nonadjacent_coupling", "sensor_gain", "sensor_delay",
+            "nonlinearity")
+
+
+def extend_parameters(params, enrichments, ref, values=None):
+    """A ParameterSet with the enrichments' parameters appended (group "physics").
+
+    values : optional start values, one list per enrichment (default: the
+    family's initial guess).
+    """
+    from dataclasses import replace
+
+    from nlp.model.parameters import Parameter
+
+    extra = []
+    for k, e in enumerate(enrichments):
+        sp = e.spec(ref)
+        init = sp["initial"] if values is None else values[k]
+        for name, v, lo, hi, sc in zip(e.names, init, sp["lower"], sp["upper"], sp["scale"]):
+            extra.append(Parameter(name, "physics", float(v), float(lo), float(hi), scale=float(sc)))
+    base = tuple(p for p in params.params if p.group != "physics")
+    return replace(params, params=base + tuple(extra))
+
+
+def references(model, damping_C0):
+    """Reference magnitudes the families scale by: mean floor mass, story stiffness, damping."""
+    import numpy as np
+
+    return {"m_ref": float(np.mean(np.diag(model.M0))),
+            "k_ref": float(np.mean(model.alpha_nominal)) if np.all(model.alpha_nominal != 1.0)
+            else float(np.mean(np.diag(model.K0))),
+            "c_ref": float(np.mean(np.diag(damping_C0)))}

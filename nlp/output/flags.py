@@ -1,0 +1,97 @@
+"""Honest flags: results that look fine in a table but must not be read as fine.
+
+Each flag is a dict ``{"kind", "subject", "message", "advice"}`` stored under
+``"flags"`` in result.json / summary.json, printed as a warning and shown at
+the top of report.html.
+
+* ``at_bound``: a parameter on (or within 0.1 % of the range from) a bound. The
+  optimum is not interior, so its Gauss-Newton standard error does not hold;
+  it means the bound is wrong, the model is wrong, or the data do not identify
+  the parameter.
+* ``iteration_limit``: the best start stopped at the solver's iteration (or
+  time) limit, or a start that did reached a lower objective than the best
+  converged one: the optimum may not be reached.
+* ``negative_correlation``: a replayed time history anti-correlates with its
+  record, the signature of a sign or unit error (an inverted sensor, a force
+  taken with the wrong sign, a displacement given as acceleration).
+"""
+
+import numpy as np
+
+__all__ = ["AT_BOUND", "bound_flag", "iteration_flag", "replay_flags", "LIMIT_STATUSES"]
+
+AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, that counts as "on"
+LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
+                  "Maximum_WallTime_Exceeded", "Max_Iter_Exceeded")
+
+
+def bound_flag(name, value, lower, upper, unit, se_key):
+    """The at-bound flag of one parameter (physical value and bounds), or None.
+
+    se_key : the case-file keys that set this bound, named in the advice.
+    """
+    span = upper - lower
+    if not np.isfinite(span) or span <= 0:
+        return None
+    side = ("lower" if value - lower <= AT_BOUND * span else
+            "upper" if upper - value <= AT_BOUND * span else None)
+    if side is None:
+        return None
+    b = lower if side == "lower" else upper
+    return {"kind": "at_bound", "subject": name, "bound": side,
+            "message": f"{name} = {value:.6g} {unit} is on its {side} bound {b:.6g} {unit}; "
+                       "its standard error does not apply (the optimum is not interior)",
+            "advice": f"either the bound is wrong (widen {se_key}), the model is wrong (the data "
+                      "ask for a value the model can only approach at the bound; try "
+                      "'frf-nlp diagnose'), or these data do not identify it (check "
+                      "identifiability.weak_directions)"}
+
+
+def iteration_flag(best, results, solver, agreed=0):
+    """Flag a search whose answer may lie beyond a solver limit, or None.
+
+    The best start is flagged when it stopped at an iteration or time limit
+    itself (it is the best only when ``agreed`` >= 3 starts reached the same
+    objective, :func:`nlp.solve.search.agreed_minimum`), or when a start that stopped
+    at a limit had already reached a lower objective: that start was still
+    descending where the best one is reported.
+    """
+    key = "ipopt.max_iter" if solver == "ipopt" else "max_iter"
+    advice = (f"raise solver.options.{key}, run more starts (--starts), and if it persists "
+              "look for a weakly identified combination (identifiability) or a wrong model")
+    if best.status in LIMIT_STATUSES:
+        msg = (f"the best start stopped at the solver's limit ({best.status}, "
+               f"{best.iterations} iterations): it may not be at an optimum")
+        if agreed:
+            msg = (f"no start met the solver's tolerance: the best stopped at its limit "
+                   f"({best.status}, {best.iterations} iterations), where {agreed} independent "
+                   "starts reach the same objective (within 0.1 in chi-square); the objective's minimum is "
+                   "reached, but parameters along weakly identified combinations are not "
+                   "determined (their spread over those starts is in the result)")
+        return {"kind": "iteration_limit", "subject": "best start", "message": msg,
+                "advice": advice}
+    lower = [r for r in results if r.status in LIMIT_STATUSES and np.isfinite(r.f)
+             and r.f < best.f]
+    if not lower:
+        return None
+    r = min(lower, key=lambda r: r.f)
+    return {"kind": "iteration_limit", "subject": "search",
+            "message": f"{len(lower)} start(s) stopped at the solver's limit ({r.status}, "
+                       f"{r.iterations} iterations) below the best converged objective "
+                       f"({r.f:.6g} < {best.f:.6g}): the optimum may lie elsewhere",
+            "advice": advice}
+
+
+def replay_flags(time_domain):
+    """Flags for replayed channels whose correlation with the record is negative."""
+    out = []
+    for name, rep in time_domain.items():
+        r = rep["correlation"]
+        if np.isfinite(r) and r < 0:
+            out.append({"kind": "negative_correlation", "subject": name,
+                        "message": f"the replayed {rep['quantity']} of {name} anti-correlates "
+                                   f"with its record (correlation {r:.3f})",
+                        "advice": "likely a sign or unit error: check the sensor's orientation, "
+                                  "its quantity and unit in data.channels, and the sign of the "
+                                  "input"})
+    return out

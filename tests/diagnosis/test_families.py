@@ -1,0 +1,123 @@
+"""Every added-physics family's FRF against an independent numpy implementation."""
+
+import numpy as np
+import pytest
+
+from conftest import frame_parameter_set, shear_K
+from nlp.model.damping import GeneralDamping
+from nlp.model.nominal import shear_frame
+from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
+                         NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
+                         extend_parameters)
+from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
+
+m = np.array([3.0, 2.5, 2.0])
+k = np.array([3000.0, 2500.0, 2000.0])
+C0 = 0.002 * shear_K(k) + 0.1 * np.diag(m)
+REF = {"m_ref": 2.5, "k_ref": 2500.0, "c_ref": 2.0}
+W = np.linspace(2.0, 90.0, 40)
+
+
+def _numpy_frf(M, C, K, Kh, excitation, dof=None):
+    n = M.shape[0]
+    b = -M @ np.ones(n) if excitation == "ground" else np.eye(n)[dof]
+    return np.array([np.linalg.solve(K - w**2 * M + 1j * (w * C + Kh), b) for w in W]).T
+
+
+def _problem(enrichment, values, excitation="ground", outputs=("receptance",) * 3):
+    model = shear_frame(m, k)
+    damping = GeneralDamping(C0)
+    params = extend_parameters(frame_parameter_set(m, k, damping), [enrichment], REF, [values])
+    chans = tuple(Channel(f"c{i + 1}", i, o) for i, o in enumerate(outputs))
+    tg = Target(W, np.ones((3, W.size), complex), np.ones((3, W.size)), chans, excitation,
+                None if excitation == "ground" else 0)
+    pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=[enrichment], refs=REF)
+    return pr.channel_frfs(pr.z0, W)
+
+
+def _base():
+    return np.diag(m).astype(float), C0.copy(), shear_K(k), np.zeros((3, 3))
+
+
+def test_added_mass():
+    M, C, K, Kh = _base()
+    M[1, 1] += 0.4
+    np.testing.assert_allclose(_problem(AddedMass(2), [0.4]), _numpy_frf(M, C, K, Kh, "ground"),
+                               rtol=1e-9)
+
+
+def test_base_flexibility():
+    M, C, K, Kh = _base()
+    mb, kb, cb = 1.5, 2e4, 3.0
+    Ma = np.diag([*m, mb])
+    Ka = np.zeros((4, 4))
+    Ka[:3, :3] = K
+    Ka[0, 3] = Ka[3, 0] = -k[0]       # story 1 now joins floor 1 and the base
+    Ka[3, 3] = k[0] + kb
+    Ca = np.zeros((4, 4))
+    Ca[:3, :3] = C
+    g = C @ np.ones(3)
+    Ca[:3, 3] = Ca[3, :3] = -g
+    Ca[3, 3] = g.sum() + cb
+    H = _numpy_frf(Ma, Ca, Ka, np.zeros((4, 4)), "ground")[:3]
+    np.testing.assert_allclose(_problem(BaseFlexibility(), [mb, np.log10(kb), cb]), H, rtol=1e-9)
+
+
+def test_secondary_oscillator():
+    M, C, K, Kh = _base()
+    mu, fs, zs = 0.05, 6.0, 0.03
+    ms = mu * REF["m_ref"]
+    ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * zs * ms * 2 * np.pi * fs
+    Ma = np.diag([*m, ms])
+    Ka = np.zeros((4, 4))
+    Ka[:3, :3] = K
+    Ca = np.zeros((4, 4))
+    Ca[:3, :3] = C
+    for A, v in ((Ka, ks), (Ca, cs)):
+        A[2, 2] += v
+        A[2, 3] = A[3, 2] = -v
+        A[3, 3] = v
+    H = _numpy_frf(Ma, Ca, Ka, np.zeros((4, 4)), "ground")[:3]
+    np.testing.assert_allclose(_problem(SecondaryOscillator(3, fs), [mu, fs, zs]), H, rtol=1e-9)
+
+
+@pytest.mark.parametrize("i,j", [(1, 0), (3, 1)])
+def test_local_damper(i, j):
+    M, C, K, Kh = _base()
+    c = 2.5
+    e = np.zeros(3)
+    e[i - 1] += 1
+    if j:
+        e[j - 1] -= 1
+    H = _numpy_frf(M, C + c * np.outer(e, e), K, Kh, "ground")
+    np.testing.assert_allclose(_problem(LocalDamper(i, j), [c]), H, rtol=1e-9)
+
+
+def test_hysteretic_damping_global_and_story():
+    M, C, K, Kh = _base()
+    np.testing.assert_allclose(_problem(HystereticDamping(), [0.03]),
+                               _numpy_frf(M, C, K, 0.03 * K, "ground"), rtol=1e-9)
+    K2 = shear_K(k * np.array([0, 1, 0]))
+    np.testing.assert_allclose(_problem(HystereticDamping(2), [0.05]),
+                               _numpy_frf(M, C, K, 0.05 * K2, "ground"), rtol=1e-9)
+
+
+def test_nonadjacent_coupling():
+    M, C, K, Kh = _base()
+    e = np.array([1.0, 0.0, -1.0])
+    np.testing.assert_allclose(_problem(NonadjacentCoupling(1, 3), [400.0]),
+                               _numpy_frf(M, C, K + 400.0 * np.outer(e, e), Kh, "ground"),
+                               rtol=1e-9)
+
+
+def test_sensor_gain_and_delay_on_one_channel():
+    M, C, K, Kh = _base()
+    H = _numpy_frf(M, C, K, Kh, "force", 0) * (-(W**2))
+    out = ("accelerance",) * 3
+    G = _problem(SensorGain("c2"), [0.1], "force", out)
+    np.testing.assert_allclose(G[[0, 2]], H[[0, 2]], rtol=1e-9)
+    np.testing.assert_allclose(G[1], 1.1 * H[1], rtol=1e-9)
+    D = _problem(SensorDelay("c3"), [4.0], "force", out)
+    np.testing.assert_allclose(D[2], H[2] * np.exp(-1j * W * 4e-3), rtol=1e-9)
+    np.testing.assert_allclose(np.abs(D[2]), np.abs(H[2]), rtol=1e-12)

@@ -1,0 +1,138 @@
+"""The re-centred reduced basis (nlp.workflow.recentre) on a mid-size model where the nominal basis is biased.
+
+The reference is independent of the reduced machinery: the exact sparse backend's
+optimum on the same data. The data come from a modal-superposition simulator over all
+undamped modes (exact for Rayleigh damping), not from the package's FRF code.
+"""
+
+import os
+
+import numpy as np
+import pytest
+import scipy.io
+import scipy.linalg as sla
+import scipy.sparse as sp
+import yaml
+
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.load import load_case
+from nlp.solve.identify import standard_errors
+from nlp.workflow.recentre import recentre
+
+N_DOF, GROUPS = 240, 6
+A0, A1 = 0.05, 2e-4   # Rayleigh [1/s], [s]
+
+
+def chain(k):
+    """Stiffness of a fixed-base chain with spring k[i] below mass i."""
+    n = k.size
+    upper = np.append(k[1:], 0.0)
+    return sp.diags([k + upper, -k[1:], -k[1:]], [0, 1, -1], format="csc")
+
+
+def write_chain_case(folder, backend, noise=0.01, seed=3, **model):
+    """A 240-DOF chain as matrix files, 6 stiffness groups changed by up to 12 %, force at
+    the top, accelerances at 4 DOFs; returns (case path, true relative changes)."""
+    rng = np.random.default_rng(seed)
+    n = N_DOF
+    m = np.full(n, 100.0)
+    k = 4.0e7 * np.linspace(1.5, 1.0, n)
+    groups = np.array_split(np.arange(n), GROUPS)
+    change = rng.uniform(-0.12, 0.12, GROUPS)
+    os.makedirs(os.path.join(folder, "groups"), exist_ok=True)
+    scipy.io.mmwrite(os.path.join(folder, "M.mtx"), sp.diags(m, format="csc"))
+    scipy.io.mmwrite(os.path.join(folder, "K.mtx"), chain(k))
+    k_true = k.copy()
+    for i, g in enumerate(groups):
+        kg = np.zeros(n)
+        kg[g] = k[g]
+        sp.save_npz(os.path.join(folder, "groups", f"g{i + 1}.npz"), chain(kg))
+        k_true[g] *= 1 + change[i]
+    # truth FRF: modal superposition over all modes (Rayleigh: modal damping a0/(2w) + a1 w/2)
+    lam, Phi = sla.eigh(chain(k_true).toarray(), np.diag(m))
+    wr = np.sqrt(lam)
+    band_top = wr[3] * 1.15
+    f = np.linspace(0.8 * wr[0], band_top, 240) / (2 * np.pi)
+    w = 2 * np.pi * f
+    dofs, force = [59, 119, 179, 239], 239
+    den = wr[:, None] ** 2 - w[None, :] ** 2 + 1j * w[None, :] * (A0 + A1 * wr[:, None] ** 2)
+    H = -(w ** 2) * ((Phi[dofs] * Phi[force]) @ (1.0 / den))
+    H = H * np.exp(rng.normal(0, noise, H.shape) + 1j * rng.normal(0, noise, H.shape))
+    np.savez(os.path.join(folder, "frf.npz"), f=f, H=H)
+    cfg = {"name": "chain240",
+           "model": {"type": "matrices", "M": "M.mtx", "K": "K.mtx", "frf_backend": backend,
+                     "stiffness_groups": {f"g{i + 1}": f"groups/g{i + 1}.npz"
+                                          for i in range(GROUPS)}, **model},
+           "parameters": {"stiffness_bounds": [-0.5, 1.0]},
+           "damping": {"model": "rayleigh", "a0": A0 * 1.2, "a1": A1 * 0.8},
+           "excitation": {"type": "force", "floor": force + 1},
+           "data": {"file": "frf.npz", "window": "none", "channels": [
+               {"name": f"a{d + 1}", "floor": d + 1, "output": "accelerance", "column": c}
+               for c, d in enumerate(dofs)]},
+           "frequencies": {"method": "all"},
+           "objective": {"residual": "log_magnitude"},
+           "search": {"starts": 1, "seed": 0, "workers": 1}}
+    path = os.path.join(folder, "case.yaml")
+    with open(path, "w") as fh:
+        yaml.safe_dump(cfg, fh)
+    return path, change
+
+
+def test_recentred_reduced_fit_equals_exact_sparse_fit(tmp_path):
+    """The nominal basis (modes up to 3 x the band's top, static and residual-flexibility
+    vectors; ln|H| error < 1e-4 at z0) cannot follow 12 % stiffness changes: its fit is several
+    standard errors off. Re-centring the basis on the fit removes the bias: the result agrees
+    with the exact sparse backend's optimum within 0.2 standard errors (measured 0.14)."""
+    path, change = write_chain_case(str(tmp_path / "exact"), "sparse")
+    case = assemble(load_case(path))
+    exact = build_problem(case)
+    assert exact.backend == "sparse"
+    ref = exact.solve()
+    assert ref.success
+    r, J = exact.residuals(ref.z)
+    se = np.sqrt(np.diag(standard_errors(J, r, exact.n_used)[0]))
+    na = GROUPS
+    assert np.all(np.abs((1 + ref.z[:na]) / (1 + change) - 1) < 5 * se[:na])  # sanity: near truth
+
+    path_r, _ = write_chain_case(str(tmp_path / "reduced"), "reduced", reduced_cutoff=3.0)
+    case_r = assemble(load_case(path_r))
+    nominal = build_problem(case_r)
+    assert nominal.backend == "reduced"
+    res0 = nominal.solve()
+    bias0 = np.max(np.abs(res0.z - ref.z) / se)
+    assert bias0 > 1.0, f"the nominal basis should be biased here (bias {bias0:.2f} SE)"
+    logs = []
+    problem, best, info = recentre(case_r, nominal, res0, log=logs.append)
+    bias = np.max(np.abs(best.z - ref.z) / se)
+    assert info["converged"] and len(info["passes"]) <= 4
+    assert bias < 0.2, f"re-centred fit {bias:.3f} SE from the exact optimum (nominal {bias0:.2f})"
+    final = info["final_check"]
+    assert final["rms_log_error"] < final["noise"] and problem.reduced_info["recentred"]
+    assert any("reduced vs exact" in m for m in logs)
+
+
+def test_band_continuation_reaches_the_exact_optimum_and_validates_its_key(tmp_path):
+    """The continuation start (fit up to 2 and 3 modes' band, then all) ends at the same optimum
+    as a direct local solve on this well-posed chain (within 0.1 standard errors); a decreasing
+    band list is refused with the key named."""
+    from nlp.solve.continuation import band_continuation
+    from nlp.errors import InputError
+    path, _ = write_chain_case(str(tmp_path / "c"), "sparse")
+    case = assemble(load_case(path))
+    direct = build_problem(case)
+    ref = direct.solve()
+    r, J = direct.residuals(ref.z)
+    se = np.sqrt(np.diag(standard_errors(J, r, direct.n_used)[0]))
+    top = float(case.f[case.selected].max())
+    logs = []
+    _, res = band_continuation(case, [0.4 * top, 0.7 * top], log=logs.append)
+    assert res.success and len(logs) == 3
+    assert np.max(np.abs(res.z - ref.z) / se) < 0.1
+    with open(path) as fh:
+        cfg = yaml.safe_load(fh)
+    cfg["search"]["band_continuation"] = [5.0, 3.0]
+    with open(path, "w") as fh:
+        yaml.safe_dump(cfg, fh)
+    with pytest.raises(InputError) as err:
+        load_case(path)
+    assert "search.band_continuation" in str(err.value)
