@@ -5,30 +5,45 @@ Function Considering General Damping" (Eqn 25): stiffness and mass as relative
 changes of nominal matrices, damping as a general SPD matrix C = L L^T, the FRF
 of the state-space system at each frequency, solved as a CasADi NLP.
 
-Modules (one concept each)
---------------------------
-model, parameters   nominal matrices, influence matrices, bounds/fix/tie
-damping             general (Cholesky), Rayleigh, modal, general on band modes, dashpots
-frf                 numpy reference FRFs
-frf_backends        the FRF inside the NLP: dense (CasADi SX), sparse, reduced
-problem, codegen    the NLP built once; compiled per-frequency pieces
-search              scatter search over start points
-identify            identifiability (Jacobian SVD, scale null space), errors
-freqsel, estimate   frequency-point selection; FRF estimation from records
-readers             time histories and FRFs from files, units to SI
-metrics, simulate   FDAC/FRAC/MAC; exact-discretisation time simulation
-peakpick, verify    measured modes vs model; time-domain replay
-physics, diagnose   missing-physics families; ``frf-nlp diagnose``
-config, case        typed case file; assembling a case into a problem
-results, plots      result files and figures; report (report.html)
-workflow, cli       one run of a case; the ``frf-nlp`` command
+The Python API (:mod:`nlp.api`)::
+
+    case = nlp.load_case("cases/four_story_shear_frame/case.yaml")
+    result = nlp.run(case, out="results/four_story", starts=4, seed=0)
+    nlp.diagnose(case, out="results/four_story_diagnosis")
+
+Subpackages, one concept each: :mod:`nlp.case` (the case file), :mod:`nlp.model`
+(M, K, parameters, damping), :mod:`nlp.frf` (FRFs, estimation, noise, backends),
+:mod:`nlp.io` (readers, importers), :mod:`nlp.solve` (the NLP and its search),
+:mod:`nlp.diagnosis` (missing physics), :mod:`nlp.workflow` (one run of a case),
+:mod:`nlp.monitoring` (batch updating), :mod:`nlp.output` (files, figures, report),
+:mod:`nlp.testing` (independent simulators for tests and benchmarks).
+
+``import nlp`` is light and changes nothing in the environment: the API loads on
+first use (PEP 562), so that the ``frf-nlp`` command can set its BLAS threads
+before numpy loads (:mod:`nlp.cli`).
 """
 
-import os
+from importlib import metadata
 
-# Small matrix products dominate the numeric FRF backends; a multi-threaded BLAS
-# on a busy 2-core machine made a 66 x 66 product 500x slower (measured). Set before
-# numpy loads (the CLI imports nlp first); an explicit user setting wins.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+try:
+    __version__ = metadata.version("frf-nlp")
+except metadata.PackageNotFoundError:  # a source tree on sys.path, not installed
+    __version__ = "0+unknown"
 
-__version__ = "0.1.0"
+API = ("load_case", "run", "diagnose", "batch", "ParameterEstimate", "UpdateResult",
+       "RunResult", "Diagnosis", "BatchResult")
+
+__all__ = [*API, "__version__"]
+
+
+def __getattr__(name):
+    """The API names, imported on first use."""
+    if name in API:
+        from nlp import api  # lazy on purpose: see the module docstring
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'nlp' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *API])

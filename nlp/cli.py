@@ -1,12 +1,21 @@
-"""The ``frf-nlp`` command: thin layer over config, case, search and results."""
+"""The ``frf-nlp`` command: thin layer over the case, the workflow, diagnosis and output."""
 
 import argparse
 import os
 import sys
 
-from nlp.errors import InputError, SearchFailed
-from nlp.solve.executors import EXECUTORS
-from nlp.output.outdir import check_writable, locked_folder, output_folder, prev_path
+# Small matrix products dominate the numeric FRF backends; a multi-threaded BLAS on a busy
+# 2-core machine made a 66 x 66 product 500x slower (measured). This must precede numpy's
+# import, so it lives here, in the command's own process, and not in ``import nlp``; an
+# explicit user setting wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from nlp import __version__  # noqa: E402
+from nlp import api  # noqa: E402
+from nlp.errors import InputError, SearchFailed  # noqa: E402
+from nlp.output.outdir import check_writable, locked_folder, prev_path  # noqa: E402
+from nlp.output.report import write_report  # noqa: E402
+from nlp.solve.executors import EXECUTORS  # noqa: E402
 
 __all__ = ["main"]
 
@@ -19,54 +28,35 @@ def _out(args, default):
     return out
 
 
-def _run(args):
-    from nlp.case.load import load_case
+def _case(args):
+    """The case file with the command line's overrides."""
+    return api.load_case(args.case, starts=args.starts, seed=args.seed, workers=args.workers,
+                         solver=getattr(args, "solver", None), executor=args.executor,
+                         scheduler=args.scheduler)
 
+
+def _run(args):
     out = _out(args, "results")
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
-                                "workers": args.workers, "solver": args.solver,
-                                "executor": args.executor, "scheduler": args.scheduler})
-    from nlp.workflow.update import run
-    with output_folder(out, "run") as stage:
-        status = run(cfg, stage, resume=args.resume, ckpt_out=out)
-        stage.interrupted = status == 130
+    result = api.run(_case(args), out, resume=args.resume)
     print(f"wrote {out}: summary.json, result.json, parameters.csv, figures, report.html"
           + (f" (previous result in {prev_path(out)})" if os.path.isdir(prev_path(out)) else ""))
-    return status
+    return result.status
 
 
 def _diagnose(args):
-    from nlp.case.load import load_case
-
     out = _out(args, "diagnosis")
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed,
-                                "workers": args.workers, "solver": None,
-                                "executor": args.executor, "scheduler": args.scheduler})
-    from nlp.diagnosis.driver import diagnose
-    from nlp.output.report import write_report
-
-    with output_folder(out, "diagnose") as stage:
-        diagnose(cfg, stage)
-        write_report(stage)
+    api.diagnose(_case(args), out)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png, report.html")
     return 0
 
 
 def _batch(args):
-    from nlp.monitoring.campaign import find_records, run_batch
-    from nlp.case.load import load_case
-
-    cfg = load_case(args.case, {"starts": args.starts, "seed": args.seed, "workers": args.workers,
-                                "solver": None, "executor": args.executor,
-                                "scheduler": args.scheduler})
-    records = find_records(args.records)
+    cfg = _case(args)
     out = os.path.abspath(args.out or os.path.join(os.path.dirname(cfg.path), "batch"))
-    return run_batch(cfg, records, out, resume=args.resume)
+    return api.batch(cfg, args.records, out, resume=args.resume).status
 
 
 def _report(args):
-    from nlp.output.report import write_report
-
     with locked_folder(os.path.abspath(args.dir)) as d:
         print(f"wrote {write_report(d)}")
     return 0
@@ -93,8 +83,6 @@ def _executor_arguments(p, what):
 
 
 def _parser():
-    from nlp import __version__
-
     ap = argparse.ArgumentParser(prog="frf-nlp", description="FRF-based model updating "
                                  "with general viscous damping (CasADi NLP).", epilog=_EPILOG,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -14,22 +14,20 @@ import shlex
 import subprocess
 import sys
 
+import nlp
+from nlp import __version__
+
 __all__ = ["provenance", "package_version", "git_commit", "sha256_file", "case_files"]
 
 
 def package_version():
-    """The installed frf-nlp version (the package's own when not installed)."""
-    try:
-        from importlib.metadata import PackageNotFoundError, version
-        return version("frf-nlp")
-    except (ImportError, PackageNotFoundError):
-        from nlp import __version__
-        return __version__
+    """The installed frf-nlp version (``0+unknown`` for a source tree not installed)."""
+    return __version__
 
 
-def git_commit(path=None):
+def git_commit():
     """{"commit", "dirty"} of the checkout holding the package, or None."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(path or __file__)))
+    root = os.path.dirname(os.path.dirname(os.path.abspath(nlp.__file__)))
     if not os.path.exists(os.path.join(root, ".git")):
         return None
     try:

@@ -14,6 +14,7 @@ import html
 import json
 import os
 
+from nlp import __version__
 from nlp.errors import InputError
 from nlp.output.results import write_atomic
 
@@ -71,8 +72,6 @@ def _head(title):
 def _provenance(d, stamp_file, case_file=None):
     """Version, date, case: the 'provenance' entry when the writer recorded one; otherwise
     the package version, the file's modification time (UTC) and the case path."""
-    from nlp import __version__
-
     prov = d.get("provenance")
     if isinstance(prov, dict) and prov:
         rows = [[k.replace("_", " "), _prov_value(k, v)] for k, v in prov.items()]
