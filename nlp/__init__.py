@@ -19,8 +19,8 @@ Subpackages, one concept each: :mod:`nlp.case` (the case file), :mod:`nlp.model`
 :mod:`nlp.testing` (independent simulators for tests and benchmarks).
 
 ``import nlp`` is light and changes nothing in the environment: the API loads on
-first use (PEP 562), so that the ``frf-nlp`` command can set its BLAS threads
-before numpy loads (:mod:`nlp.cli`).
+first use (PEP 562). The API runs BLAS on one thread per process
+(:mod:`nlp.solve.executors.threads`).
 """
 
 from importlib import metadata

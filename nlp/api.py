@@ -26,6 +26,7 @@ from nlp.errors import InputError
 from nlp.monitoring.campaign import find_records, run_batch
 from nlp.output.outdir import check_writable, output_folder
 from nlp.output.report import write_report
+from nlp.solve.executors.threads import one_blas_thread
 from nlp.workflow.update import run as _run
 
 __all__ = ["ParameterEstimate", "UpdateResult", "RunResult", "Diagnosis", "BatchResult",
@@ -165,7 +166,7 @@ def run(case, out, resume=False, log=print, **overrides):
     """
     cfg = _config(case, overrides)
     out = _folder(out)
-    with output_folder(out, "run") as stage:
+    with output_folder(out, "run") as stage, one_blas_thread():
         status = _run(cfg, stage, log=log, resume=resume, ckpt_out=out)
         stage.interrupted = status == 130
     with open(os.path.join(out, "summary.json")) as fh:
@@ -179,7 +180,7 @@ def diagnose(case, out, log=print, **overrides):
     """Find what physics the model leaves out, as ``frf-nlp diagnose`` does."""
     cfg = _config(case, overrides)
     out = _folder(out)
-    with output_folder(out, "diagnose") as stage:
+    with output_folder(out, "diagnose") as stage, one_blas_thread():
         _diagnose(cfg, stage, log=log)
         write_report(stage)
     with open(os.path.join(out, "diagnosis.json")) as fh:
@@ -192,8 +193,9 @@ def batch(case, records, out, resume=False, log=print, **overrides):
     ``frf-nlp batch`` does; returns the steps found in each parameter's history."""
     cfg = _config(case, overrides)
     out = os.path.abspath(out)
-    status = run_batch(cfg, find_records([records] if isinstance(records, str) else records),
-                       out, resume=resume, log=log)
+    paths = find_records([records] if isinstance(records, str) else records)
+    with one_blas_thread():
+        status = run_batch(cfg, paths, out, resume=resume, log=log)
     with open(os.path.join(out, "changes.json")) as fh:
         doc = json.load(fh)
     return BatchResult(out, status, doc["changes"], doc)

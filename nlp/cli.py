@@ -4,18 +4,11 @@ import argparse
 import os
 import sys
 
-# Small matrix products dominate the numeric FRF backends; a multi-threaded BLAS on a busy
-# 2-core machine made a 66 x 66 product 500x slower (measured). This must precede numpy's
-# import, so it lives here, in the command's own process, and not in ``import nlp``; an
-# explicit user setting wins.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-from nlp import __version__  # noqa: E402
-from nlp import api  # noqa: E402
-from nlp.errors import InputError, SearchFailed  # noqa: E402
-from nlp.output.outdir import check_writable, locked_folder, prev_path  # noqa: E402
-from nlp.output.report import write_report  # noqa: E402
-from nlp.solve.executors import EXECUTORS  # noqa: E402
+from nlp import __version__, api
+from nlp.errors import InputError, SearchFailed
+from nlp.output.outdir import check_writable, locked_folder, prev_path
+from nlp.output.report import write_report
+from nlp.solve.executors import EXECUTORS
 
 __all__ = ["main"]
 

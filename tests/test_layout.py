@@ -14,8 +14,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "nlp"
 # Imported where they are used so that the package works without them (extras in pyproject).
 OPTIONAL = {"dask", "distributed", "openseespy", "pyuff", "pdoc"}
-# nlp/__init__.py loads its API on first use (PEP 562) so that `import nlp` stays light
-# and the command can set its BLAS threads before numpy loads.
+# nlp/__init__.py loads its API on first use (PEP 562) so that `import nlp` stays light.
 LAZY = {("nlp", "__getattr__")}
 
 
@@ -174,3 +173,19 @@ def test_import_nlp_has_no_side_effect():
             "assert callable(nlp.run) and callable(nlp.load_case)")
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, env=env)
+
+
+def test_the_api_runs_blas_on_one_thread_unless_the_user_chose():
+    code = ("import numpy, threadpoolctl; from nlp.solve.executors.threads import one_blas_thread\n"
+            "n = lambda: max(i['num_threads'] for i in threadpoolctl.threadpool_info()"
+            " if i['user_api'] == 'blas')\n"
+            "with one_blas_thread(): print(n())\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS",
+                                                              "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    got = subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, env=env,
+                         capture_output=True, text=True).stdout.split()
+    assert got == ["1"]
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    got = subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, env=env,
+                         capture_output=True, text=True).stdout.split()
+    assert got == ["2"]

@@ -2,6 +2,7 @@
 
 import hashlib
 import pickle
+from nlp.solve.executors.threads import limit_blas_threads
 
 __all__ = ["Setup", "Executor", "Stream", "TaskFailed", "batches"]
 
@@ -59,6 +60,7 @@ class Setup:
         if key not in _CONTEXTS:
             while len(_CONTEXTS) >= _MAX_CONTEXTS:
                 _CONTEXTS.pop(next(iter(_CONTEXTS)))
+            limit_blas_threads()  # a spawned or Dask worker: its parent's limit did not travel
             _CONTEXTS[key] = self.build(*self.args, **self.kwargs)
         return _CONTEXTS[key]
 
