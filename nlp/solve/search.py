@@ -16,7 +16,7 @@ lowest start index, so the answer depends only on the seed, not on the
 executor, the number of workers or the order in which starts finish.
 
 Starts are screened at a looser IPOPT tolerance when the case leaves it to us
-(:data:`nlp.solve.problem.SCREEN_TOL`); the ``POLISH`` lowest converged starts are then
+(:data:`nlp.solve.stopping.SCREEN_TOL`); the ``POLISH`` lowest converged starts are then
 re-solved at the full tolerance before the best is chosen.
 """
 
@@ -32,6 +32,8 @@ from scipy.stats import qmc
 
 from nlp.errors import SearchFailed
 from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
+from nlp.solve.problem import LocalResult
+from nlp.solve.stopping import LIMIT_STATUSES
 
 __all__ = ["SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search",
            "start_points", "converged", "solve_start", "default_workers"]
@@ -206,8 +208,6 @@ def solve_start(problem, z0, screen=False):
     stopped without converging keeps the objective evaluated at the point it
     returned (inf when that is not finite), never the solver's own report.
     """
-    from nlp.solve.problem import LocalResult
-
     t0 = time.perf_counter()
     try:
         res = problem.solve(z0, screen=True) if screen else problem.solve(z0)
@@ -248,9 +248,9 @@ def _polish(problem, results):
     for _, i in top:
         if str(results[i].status).startswith("Stationary"):
             # stationary by the Newton test at the screening stop: a full-tolerance
-            # IPOPT re-solve only creeps to its iteration limit again (blind 832173/51,
-            # a 5-storey null: with them, only the first round of refits after 7.5 min;
-            # without, the whole diagnosis in 7 min 41 s)
+            # IPOPT re-solve only creeps to its iteration limit again (measured on a blind
+            # 5-storey null case: re-solving them, the diagnosis had finished only its
+            # first round of refits after 7.5 min; skipping them, all of it took 7 min 41 s)
             continue
         r = results[i]
         p = solve_start(problem, r.z)
@@ -384,8 +384,6 @@ def agreed_minimum(results, indices, rel=1e-4, n_min=AGREE_MIN):
     direction; the result flags that). Returns the indices of the agreeing
     starts (converged ones included), or [] when the converged best stands.
     """
-    from nlp.output.flags import LIMIT_STATUSES
-
     f_conv = min([r.f for r in results if r.success] or [np.inf])
     stopped = [r.f for r in results
                if not r.success and r.status in LIMIT_STATUSES and np.isfinite(r.f)]
