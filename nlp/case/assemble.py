@@ -25,7 +25,8 @@ from nlp.model.parameters import Parameter, ParameterSet
 from nlp.frf.reference import BASE_DOF
 from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
 from nlp.frf.estimate import estimate_frf
-from nlp.frf.noise import estimator_kernel, noise_model
+from nlp.frf.kernel import estimator_kernel
+from nlp.frf.noise import noise_model
 from nlp.io.readers import read_frf, read_frf_coherence, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem", "detection_noise"]

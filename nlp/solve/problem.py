@@ -84,7 +84,7 @@ class Target:
     ground motion (1 on the DOFs it moves; None: every DOF, a shear frame);
     ``kernel`` (h [rad/s], a): the data are a windowed average, so the model is
     compared as the estimator sees it, a H(w - h) + (1 - 2a) H(w) + a H(w + h)
-    (:func:`nlp.frf.noise.smoothing_taps`; dense backend only).
+    (:func:`nlp.frf.kernel.smoothing_taps`; dense backend only).
     """
 
     omega: np.ndarray
