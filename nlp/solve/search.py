@@ -300,53 +300,82 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     if progress is None:
         progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
-    interrupted = False
-    own = executor is None
     setup = setup or Setup(value=problem)
-    stream = None
-    results = {}
     with interrupts_as_keyboard() as guard:
-        try:
-            if own:
-                executor = make_executor(config.executor, config.workers, config.scheduler)
-            starts, n_trial = start_points(problem, config, executor, setup)
-            if checkpoint is not None:
-                results = checkpoint.open(problem, config, starts)
-            resumed = len(results)
-            todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
-            best_f = min([r.f for r in results.values() if r.success] or [np.inf])
-            stream = executor.stream(setup, _solve_item, todo)
-            for i, res in stream:
-                with guard.deferred():  # a received start is always recorded
-                    results[i] = res
-                    if checkpoint is not None:
-                        checkpoint.append(i, res)
-                    if res.success:
-                        best_f = min(best_f, res.f)
-                    _progress(len(results), len(starts), best_f, progress)
-        except KeyboardInterrupt:
-            if stream is None:  # nothing was started: nothing to keep
-                raise
-            interrupted = True
-            with guard.deferred(swallow=True):
-                for i, res in stream.stop():
-                    results.setdefault(i, res)
-                    if checkpoint is not None:
-                        checkpoint.append(i, res)
-                if progress is not None:
-                    progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
-        finally:
-            with guard.deferred(swallow=True):
-                if stream is not None:
-                    stream.close()
-                if own and executor is not None:
-                    executor.close()
-                if checkpoint is not None:
-                    checkpoint.close()
+        run = _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
         with guard.deferred(swallow=True):  # a few solves; a Ctrl-C now waits for them
-            polished = _polish(problem, results)
+            polished = _polish(problem, run.results)
+    results = run.results
     indices = sorted(results)
     ordered = [results[i] for i in indices]
+    agreed, best = _best(problem, results, indices, ordered, run.interrupted)
+    return SearchResult(results=ordered, best=best, n_trial=run.n_trial,
+                        n_requested=run.n_requested, interrupted=run.interrupted,
+                        seconds=time.perf_counter() - t0, indices=indices, resumed=run.resumed,
+                        agreed=tuple(agreed), polished=polished)
+
+
+@dataclass
+class _StartsRun:
+    """The local solves of one search: {start index: LocalResult} and how they ran."""
+
+    results: dict
+    n_trial: int
+    n_requested: int
+    resumed: int
+    interrupted: bool
+
+
+def _solve_starts(problem, config, executor, setup, checkpoint, progress, guard):
+    """Solve the search's starts on the executor (one made from ``config`` when None),
+    recording each in the checkpoint; a KeyboardInterrupt keeps the finished ones."""
+    own = executor is None
+    interrupted = False
+    stream = None
+    results = {}
+    try:
+        if own:
+            executor = make_executor(config.executor, config.workers, config.scheduler)
+        starts, n_trial = start_points(problem, config, executor, setup)
+        if checkpoint is not None:
+            results = checkpoint.open(problem, config, starts)
+        resumed = len(results)
+        todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
+        best_f = min([r.f for r in results.values() if r.success] or [np.inf])
+        stream = executor.stream(setup, _solve_item, todo)
+        for i, res in stream:
+            with guard.deferred():  # a received start is always recorded
+                results[i] = res
+                if checkpoint is not None:
+                    checkpoint.append(i, res)
+                if res.success:
+                    best_f = min(best_f, res.f)
+                _progress(len(results), len(starts), best_f, progress)
+    except KeyboardInterrupt:
+        if stream is None:  # nothing was started: nothing to keep
+            raise
+        interrupted = True
+        with guard.deferred(swallow=True):
+            for i, res in stream.stop():
+                results.setdefault(i, res)
+                if checkpoint is not None:
+                    checkpoint.append(i, res)
+            if progress is not None:
+                progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
+    finally:
+        with guard.deferred(swallow=True):
+            if stream is not None:
+                stream.close()
+            if own and executor is not None:
+                executor.close()
+            if checkpoint is not None:
+                checkpoint.close()
+    return _StartsRun(results, n_trial, len(starts), resumed, interrupted)
+
+
+def _best(problem, results, indices, ordered, interrupted):
+    """(agreed starts, best result): the lowest converged objective, or the minimum that
+    starts stopped at a limit agree on (:func:`agreed_minimum`); ties to the lowest index."""
     good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
     dof = getattr(problem, "n_used", 0) - len(problem.z0)
     agreed = agreed_minimum(ordered, indices, rel=AGREE_CHI2 / max(dof, 1))
@@ -357,11 +386,7 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
             raise KeyboardInterrupt("interrupted before any local solve converged")
         raise SearchFailed(f"none of the {len(ordered)} local solves converged "
                            f"({_failure_summary(ordered)})")
-    best = results[min(good)[1]]  # lowest f; the lowest start index on ties
-    return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
-                        interrupted=interrupted, seconds=time.perf_counter() - t0,
-                        indices=indices, resumed=resumed, agreed=tuple(agreed),
-                        polished=polished)
+    return agreed, results[min(good)[1]]  # lowest f; the lowest start index on ties
 
 
 AGREE_CHI2 = 0.1  # objectives closer than this in chi-square are one minimum
