@@ -330,8 +330,8 @@ def _read_records(cfg, paths):
     nperseg = n if d.nperseg == "all" else d.nperseg
     noverlap = None if nperseg is None else int(d.overlap * nperseg)
     if nperseg is None:  # the default segment, with the case's overlap (not scipy's half)
-        from nlp.frf.estimate import _default_nperseg
-        nperseg = _default_nperseg(n)
+        from nlp.frf.estimate import default_nperseg
+        nperseg = default_nperseg(n)
         noverlap = int(d.overlap * nperseg)
     try:
         est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,

@@ -12,8 +12,14 @@ import math
 import numpy as np
 from scipy import signal
 
-__all__ = ["welch_averages", "kernel_moment", "smoothing_taps", "estimator_kernel",
+from nlp.frf.estimate import default_nperseg
+
+__all__ = ["FILE_NPERSEG", "welch_averages", "kernel_moment", "smoothing_taps", "estimator_kernel",
            "resolution_bias", "file_resolution_bias2"]
+
+# segment length [samples] taken for an FRF file, which does not state its own: the taps and
+# kernel moments converge with it
+FILE_NPERSEG = 1024
 
 
 def welch_averages(n, nperseg, noverlap=None, window="hann"):
@@ -67,7 +73,7 @@ def kernel_moment(window, nperseg):
     return nperseg ** 2 * float(dw @ dw) / (4 * math.pi ** 2 * float(w @ w))
 
 
-def smoothing_taps(window, nperseg=1024):
+def smoothing_taps(window, nperseg=FILE_NPERSEG):
     """The averaged estimate's view of an FRF as three taps: (h [bins], a).
 
     A windowed average (Welch, an analyzer's FRF) estimates the true FRF smoothed by
@@ -116,9 +122,9 @@ def estimator_kernel(cfg, f, records=None, coherence=None, n_averages=None):
     if np.max(np.abs(df - df.mean())) > 1e-6 * abs(df.mean()):
         return None
     if from_records:
-        nperseg = d.nperseg or int(2 ** np.floor(np.log2(max(records.t.size // 8, 1))))
+        nperseg = d.nperseg or default_nperseg(records.t.size)
     else:   # the file's segment length is not stated; the taps converge with it
-        nperseg = 1024
+        nperseg = FILE_NPERSEG
     h, a = smoothing_taps(d.window, nperseg)
     return 2 * math.pi * h * float(df.mean()), a
 
@@ -150,4 +156,4 @@ def file_resolution_bias2(f, H, window="hann"):
     df = np.diff(f)
     if np.max(np.abs(df - df.mean())) > 1e-6 * abs(df.mean()):
         return 0.0
-    return resolution_bias(H, kernel_moment(window, 1024)) ** 2
+    return resolution_bias(H, kernel_moment(window, FILE_NPERSEG)) ** 2

@@ -47,7 +47,9 @@ import numpy as np
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
-from nlp.frf.kernel import file_resolution_bias2, kernel_moment, resolution_bias, welch_averages
+from nlp.frf.estimate import default_nperseg
+from nlp.frf.kernel import (FILE_NPERSEG, file_resolution_bias2, kernel_moment, resolution_bias,
+                            welch_averages)
 from nlp.frf.scatter import local_scatter, second_difference_factor, spaced_scatter
 from nlp.frf.variance import (SIGMA_FLOOR, VAR_LN_MAX, rest_mask, rest_noise_psd,
                               var_ln_transient, var_ln_welch)
@@ -103,7 +105,7 @@ def _from_records(case):
     n = rec.t.size
     nperseg = n if d.nperseg == "all" else d.nperseg
     if nperseg is None:
-        nperseg = int(2 ** np.floor(np.log2(max(n // 8, 1))))
+        nperseg = default_nperseg(n)
     noverlap = 0 if d.nperseg == "all" else int(d.overlap * nperseg)
     # segments of one record, and the overlap correction of their count
     n_d, n_eff = welch_averages(n, nperseg, noverlap, d.window)
@@ -175,8 +177,9 @@ def noise_model(case):
         if n_eff > 1 and w != "none":
             # an analyzer's averages overlap (data.overlap, default half): correlated
             # segments, as in the Welch route (welch_averages)
-            step = max(int(round(1024 * (1.0 - case.config.data.overlap))), 1)
-            n_eff = welch_averages(1024 + (int(n_eff) - 1) * step, 1024, 1024 - step, w)[1]
+            L = FILE_NPERSEG
+            step = max(int(round(L * (1.0 - case.config.data.overlap))), 1)
+            n_eff = welch_averages(L + (int(n_eff) - 1) * step, L, L - step, w)[1]
         if n_eff > 1:
             var = var_ln_welch(case.coherence, n_eff)
             s_det = np.maximum(np.sqrt(np.minimum(var + bias2, VAR_LN_MAX)), SIGMA_FLOOR)
@@ -191,7 +194,7 @@ def noise_model(case):
         # (m2/2)^2 x second_difference_factor x s^2 of the noise itself: counted once
         # already in s (blind null FRF files without coherence fitted at 0.67-0.84)
         w = case.config.data.window
-        m2 = kernel_moment(w, 1024)
+        m2 = kernel_moment(w, FILE_NPERSEG)
         bias2 = np.clip(bias2 - (0.5 * m2) ** 2 * second_difference_factor(w) * s ** 2, 0.0, None)
         # read bin by bin from a noisy estimate, the bias of a sharp peak lands on one bin
         # and misses its neighbour (measured on a blind FRF file, a 1.1 % mode on 5 bins per

@@ -388,7 +388,8 @@ class UpdatingProblem:
         """Chi-square decrease a Gauss-Newton step from z would give: g^T (J^T J)^+ g on the
         steps that keep the bounds active where the gradient presses on them and the
         total-mass anchor satisfied (g = J^T r; 2 f is the chi-square). Small means
-        stationary, whatever the size of the misfit (:func:`nlp.solve.stopping.gauss_newton_decrement`)."""
+        stationary, whatever the size of the misfit
+        (:func:`nlp.solve.stopping.gauss_newton_decrement`)."""
         z = np.asarray(z, float)
         r, J = self.residuals(z)
         lo, hi = self.bounds
