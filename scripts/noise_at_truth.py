@@ -48,8 +48,9 @@ from nlp.case.assemble import assemble  # noqa: E402
 from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.fitting import _windows  # noqa: E402
 from nlp.diagnosis.spread import effective_points  # noqa: E402
-from nlp.frf.noise import (kernel_moment, resolution_bias, sigma_ln, var_ln_welch,  # noqa: E402
-                       welch_averages)
+from nlp.frf.kernel import kernel_moment, resolution_bias, welch_averages  # noqa: E402
+from nlp.frf.noise import sigma_ln  # noqa: E402
+from nlp.frf.variance import var_ln_welch  # noqa: E402
 
 
 def true_frf(truth, case):

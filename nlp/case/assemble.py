@@ -25,7 +25,8 @@ from nlp.model.parameters import Parameter, ParameterSet
 from nlp.frf.reference import BASE_DOF
 from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
 from nlp.frf.estimate import estimate_frf
-from nlp.frf.noise import estimator_kernel, noise_model
+from nlp.frf.kernel import estimator_kernel
+from nlp.frf.noise import noise_model
 from nlp.io.readers import read_frf, read_frf_coherence, read_time_histories
 
 __all__ = ["Case", "assemble", "build_problem", "detection_noise"]
@@ -329,8 +330,8 @@ def _read_records(cfg, paths):
     nperseg = n if d.nperseg == "all" else d.nperseg
     noverlap = None if nperseg is None else int(d.overlap * nperseg)
     if nperseg is None:  # the default segment, with the case's overlap (not scipy's half)
-        from nlp.frf.estimate import _default_nperseg
-        nperseg = _default_nperseg(n)
+        from nlp.frf.estimate import default_nperseg
+        nperseg = default_nperseg(n)
         noverlap = int(d.overlap * nperseg)
     try:
         est = estimate_frf(xs, ys, first.fs, estimator=d.estimator, nperseg=nperseg,

@@ -136,8 +136,8 @@ def check_coherence(cfg, f, coherence, names, keys, n_averages):
     from several averages only: with one average the coherence is 1 by construction)."""
     if coherence is None or n_averages < 16:
         return
-    from nlp.frf.freqsel import _window  # config validated fmin < fmax already
-    band = (f > 0) & _window(f, cfg.frequencies.fmin, cfg.frequencies.fmax)
+    from nlp.frf.freqsel import frequency_mask  # config validated fmin < fmax already
+    band = (f > 0) & frequency_mask(f, cfg.frequencies.fmin, cfg.frequencies.fmax)
     for c, (name, key) in enumerate(zip(names, keys)):
         top = float(np.max(coherence[c, band])) if band.any() else 0.0
         if top < MIN_COHERENCE:

@@ -1002,7 +1002,7 @@ def _whole_band(case, base, zb, improved, zi, fit):
         return np.log(np.abs(_detection_form(f, H, case.channels, ex)) + 1e-300)
 
     Lx = ln_det(case.H[:, idx])
-    from nlp.frf.noise import second_difference_factor
+    from nlp.frf.scatter import second_difference_factor
     d2f = second_difference_factor(case.config.data.window)   # windowed estimates: bins correlate
     sig = local_sigma(Lx, d2_factor=d2f)
     m = np.broadcast_to(mask[:, idx], Lx.shape) & (sig < MAX_SCATTER)  # no coherent data there

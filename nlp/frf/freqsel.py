@@ -8,12 +8,16 @@ half-power band of each resonance, widened by a factor ``k``.
 import math
 import os
 
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 import numpy as np
 from scipy import signal
 
 from nlp.errors import InputError
+from nlp.frf.scatter import local_scatter
 
-__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection", "peak_curve"]
+__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection", "peak_curve",
+           "frequency_mask"]
 
 _SRC = "<arguments>"
 
@@ -29,8 +33,8 @@ def _check_fh(f, H):
     return f, H
 
 
-def _window(f, fmin, fmax):
-    """Boolean mask of fmin <= f <= fmax (open ends when None)."""
+def frequency_mask(f, fmin, fmax):
+    """Boolean mask of fmin <= f <= fmax [Hz] (open ends when None)."""
     lo = -np.inf if fmin is None else fmin
     hi = np.inf if fmax is None else fmax
     if lo >= hi:
@@ -87,12 +91,10 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     the other channels is not lost. Real ``H`` (magnitudes only) uses the
     majority rule alone.
     """
-    from nlp.frf.noise import local_scatter
-
     f, H = _check_fh(f, H)
     if n_peaks is not None and (int(n_peaks) != n_peaks or n_peaks < 1):
         raise InputError(_SRC, "n_peaks", "a positive integer", got=n_peaks)
-    sel = np.flatnonzero(_window(f, fmin, fmax))
+    sel = np.flatnonzero(frequency_mask(f, fmin, fmax))
     # Peaks of every channel and of the channel sum: a mode that one channel
     # barely shows (or that the 1/w^2 fall of a receptance hides in the sum)
     # is still found in another.
@@ -101,16 +103,34 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     # channels (or a peak of the channel sum).
     mags = np.abs(np.atleast_2d(H))[:, sel]
     curves = np.vstack([mags, mags.sum(axis=0)[None]])
-    n_curves = curves.shape[0]
-    # noise of ln|.| of each curve; the sum's is the magnitude-weighted channel noise
+    noise = _curve_noise(f[sel], mags, curves, sigma, sel)
+    cands = _candidates(f[sel], curves, noise, prominence_db, min_level, z_noise)
+    if not cands:
+        return np.zeros(0, dtype=int)
+    clusters = _clusters(cands, f[sel])
+    idx, prom = _resonances(clusters, np.atleast_2d(H)[:, sel], mags)
+    if n_peaks is not None and idx.size > n_peaks:
+        idx = idx[np.argsort(prom)[::-1][: int(n_peaks)]]
+    return np.unique(sel[idx])
+
+
+def _curve_noise(f, mags, curves, sigma, sel):
+    """Std of ln|.| of each curve (channels, then their sum) on the band's points ``sel``:
+    the given sigma (the sum's is the magnitude-weighted channel noise), else the robust
+    local scatter along frequency."""
     if sigma is None:
-        noise = local_scatter(f[sel], curves)[0]
-    else:
-        s_ch = np.atleast_2d(np.asarray(sigma, float))[:, sel]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            s_sum = np.sqrt(np.sum((mags * s_ch) ** 2, axis=0)) / curves[-1]
-        noise = np.vstack([s_ch, np.nan_to_num(s_sum, nan=np.inf)[None]])
-    cands = []  # (index, prominence, curve number, significance)
+        return local_scatter(f, curves)[0]
+    s_ch = np.atleast_2d(np.asarray(sigma, float))[:, sel]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s_sum = np.sqrt(np.sum((mags * s_ch) ** 2, axis=0)) / curves[-1]
+    return np.vstack([s_ch, np.nan_to_num(s_sum, nan=np.inf)[None]])
+
+
+def _candidates(f, curves, noise, prominence_db, min_level, z_noise):
+    """(index, prominence [dB], curve number, significance) of every peak of every curve
+    that is prominent enough and stands ``z_noise`` noise deviations out of its neighbours."""
+    n_curves = curves.shape[0]
+    cands = []
     for c, mag in enumerate(curves):
         with np.errstate(divide="ignore"):
             db = 20.0 * np.log10(mag)
@@ -127,25 +147,34 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
         # the prominence would measure a noise bump from the deep notches beside
         # it (ln|signal + noise| has a long lower tail), the median does not
         signif = np.array([(db[i] - np.median(db[max(i - h, 0):i + h + 1])) * math.log(10) / 20
-                           for i, h in zip(idx, _half_widths(f[sel], idx))]) / noise[c, idx]
+                           for i, h in zip(idx, _half_widths(f, idx))]) / noise[c, idx]
         keep = signif >= z_noise
         cands += [(i, p, c, z) for i, p, z in zip(idx[keep], prom[keep], signif[keep])]
-    if not cands:
-        return np.zeros(0, dtype=int)
+    return cands
+
+
+def _clusters(cands, f):
+    """[centre index, members (index, prominence, curve)]: candidates within 2 bins or 2 %
+    of a more significant one join it."""
     # Group around the most significant candidates, never by chaining neighbours:
     # a chain of noise bumps would make one group spanning many hertz.
     clusters = []  # [centre index, members]
     for i, p, c, z in sorted(cands, key=lambda t: -t[3]):
         for cl in clusters:
             j = cl[0]
-            if abs(i - j) <= 2 or abs(f[sel[i]] - f[sel[j]]) <= 0.02 * f[sel[j]]:
+            if abs(i - j) <= 2 or abs(f[i] - f[j]) <= 0.02 * f[j]:
                 cl[1].append((i, p, c))
                 break
         else:
             clusters.append([i, [(i, p, c)]])
+    return clusters
+
+
+def _resonances(clusters, Hw, mags):
+    """(indices, ranking prominences) of the clusters that are resonances: supported by a
+    strict majority of the channels or their sum, or, with phase, lagging like a pole."""
     n_ch = mags.shape[0]
     need = n_ch // 2 + 1  # a strict majority of the channels
-    Hw = np.atleast_2d(H)[:, sel]
     has_phase = np.iscomplexobj(Hw) and np.any(Hw.imag != 0)
     idx, prom = [], []
     for _, cl in clusters:
@@ -164,10 +193,7 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
                 best = max(poles, key=lambda t: t[1])
                 idx.append(best[0])
                 prom.append(best[1])
-    idx, prom = np.array(idx, dtype=int), np.array(prom)
-    if n_peaks is not None and idx.size > n_peaks:
-        idx = idx[np.argsort(prom)[::-1][: int(n_peaks)]]
-    return np.unique(sel[idx])
+    return np.array(idx, dtype=int), np.array(prom)
 
 
 def _phase_lags(h, mag, i, max_bins=10):
@@ -348,7 +374,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
             raise InputError(_SRC, "prominence_db", "a setting that finds at least one peak "
                              "(lower it, widen fmin/fmax or give explicit bands)",
                              got=prominence_db)
-        inside = np.flatnonzero(_window(f, fmin, fmax))
+        inside = np.flatnonzero(frequency_mask(f, fmin, fmax))
         parts = [_peak_points(f, ip, half_power_band(f, peak_curve(f, H, ip), ip), k,
                               int(min_points_per_peak)) for ip in peaks]
         idx = np.intersect1d(np.concatenate(parts), inside)
@@ -384,9 +410,6 @@ def plot_selection(f, H, idx, path, channel_names=None):
     path
     """
     # Figure + Agg canvas directly: no pyplot, so no global figure state.
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     f, H = _check_fh(f, H)
     idx = np.asarray(idx, dtype=int)
     names = channel_names or [f"channel {i + 1}" for i in range(H.shape[0])]

@@ -21,6 +21,7 @@ Every flagged sample is listed in the report, so a removal is always recorded.
 """
 
 from dataclasses import dataclass, field
+from itertools import combinations
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -95,8 +96,6 @@ def _central_operator(m):
 def _resolve(y, lo, hi, limit, max_spikes=3):
     """Fewest samples of y[lo:hi] (away from its two edge samples) whose least-squares
     replacement leaves every central residual of the window within ``limit``."""
-    from itertools import combinations
-
     w = y[lo - 2:hi + 2]
     D = _central_operator(w.size)
     cand = range(4, w.size - 4)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse.linalg as spla
 
 __all__ = [
     "GeneralDamping",
@@ -387,7 +388,6 @@ def band_modes(M0, K0, count):
     if n <= 400 or count >= n - 1:
         lam, Phi = sla.eigh(_dense(K0), _dense(M0), subset_by_index=[0, min(count, n) - 1])
     else:
-        import scipy.sparse.linalg as spla
         lam, Phi = spla.eigsh(K0.tocsc() if hasattr(K0, "tocsc") else K0, k=count,
                               M=M0, sigma=0.0, which="LM")
         order = np.argsort(lam)

@@ -145,8 +145,6 @@ def shear_frame(masses, stiffnesses, sparse=None):
 
 def _sparse_shear_frame(m, k):
     """shear_frame with scipy.sparse CSC matrices (story r: 2 x 2 block on floors r-1, r)."""
-    import scipy.sparse as sp
-
     n = m.size
 
     def story(r, kr):

@@ -27,7 +27,14 @@ import time
 
 import numpy as np
 
-from nlp.errors import InputError
+from nlp.case.assemble import assemble, build_problem
+from nlp.errors import InputError, SearchFailed
+from nlp.monitoring.changes import detect_changes
+from nlp.monitoring.report import plot_trend, write_batch_report
+from nlp.output.provenance import provenance
+from nlp.output.results import jsonable, summarize, write_atomic, write_json
+from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
+from nlp.solve.search import SearchConfig, scatter_search
 
 __all__ = ["find_records", "record_time", "update_record", "history_table", "run_batch"]
 
@@ -82,12 +89,6 @@ def update_record(cfg, path):
     ``status`` saying why and no parameters: one bad record does not stop a
     campaign.
     """
-    from nlp.case.assemble import assemble, build_problem
-    from nlp.errors import SearchFailed
-    from nlp.solve.executors import make_executor
-    from nlp.output.results import summarize
-    from nlp.solve.search import SearchConfig, scatter_search
-
     row = {"record": os.path.basename(path), "path": path, "time": record_time(path)}
     t0 = time.perf_counter()
     try:
@@ -158,19 +159,8 @@ def _config(cfg):
     return cfg
 
 
-def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, log=print):
-    """Update ``cfg``'s model from every record into folder ``out``; returns 0 or 130.
-
-    Records run on the case's executor (``search.executor``, ``workers``,
-    ``scheduler``): each record is one task, its starts run inside that task.
-    """
-    from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
-    from nlp.monitoring.report import plot_trend, write_batch_report
-    from nlp.monitoring.changes import detect_changes
-    from nlp.output.results import _jsonable, write_atomic, write_json
-
-    os.makedirs(out, exist_ok=True)
-    done_file = os.path.join(out, "records.jsonl")
+def _finished_records(done_file, resume):
+    """{path: row} of the records.jsonl of an earlier run (with ``resume``); else removes it."""
     done = {}
     if resume and os.path.exists(done_file):
         with open(done_file) as fh:
@@ -181,18 +171,20 @@ def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, 
                     done[row["path"]] = row
     elif os.path.exists(done_file):
         os.unlink(done_file)
-    todo = [p for p in record_paths if p not in done]
+    return done
+
+
+def _update_records(cfg, todo, done, n_records, done_file, log):
+    """Update every record of ``todo`` on the case's executor, appending each finished row
+    to ``done`` and to records.jsonl; returns True when interrupted."""
     s = cfg.search
-    log(f"batch {cfg.name}: {len(record_paths)} records ({len(done)} already done), "
-        f"executor {s.executor}, {s.workers} worker(s)")
-    t0 = time.perf_counter()
     interrupted = False
 
     def keep(p, row, fh):
         done[p] = row
-        fh.write(json.dumps(row, default=_jsonable) + "\n")
+        fh.write(json.dumps(row, default=jsonable) + "\n")
         fh.flush()
-        log(f"  [{len(done)}/{len(record_paths)}] {row['record']}: {row['status']}"
+        log(f"  [{len(done)}/{n_records}] {row['record']}: {row['status']}"
             + (f", objective {row['objective']:.4g}" if "objective" in row else ""))
 
     with open(done_file, "a") as fh, interrupts_as_keyboard(), \
@@ -209,29 +201,22 @@ def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, 
             log("batch interrupted: finished records are kept in records.jsonl; rerun with --resume")
         finally:
             stream.close()
-    rows = [done[p] for p in record_paths if p in done]
-    names, X, S = history_table(rows)
+    return interrupted
+
+
+def _history_changes(rows, names, X, S, w, threshold):
+    """{parameter: [the steps found in its history (:func:`detect_changes`)]}."""
     N = len(rows)
-    w = window or int(np.clip(N // 8, 3, 10))
     changes = {}
     for j, nm in enumerate(names):
         found = detect_changes(X[:, j], S[:, j], window=w, threshold=threshold) if N >= 2 * w else []
         changes[nm] = [{"record": rows[c.index]["record"], "index": c.index,
                         "time": rows[c.index].get("time"), "before": c.before, "after": c.after,
                         "relative_change": c.relative, "z": c.z} for c in found]
-    failed = [r["record"] for r in rows if r["status"] != "ok"]
-    from nlp.output.provenance import provenance
+    return changes
 
-    summary = {"case": cfg.name, "case_file": cfg.path, "records": N,
-               "records_requested": len(record_paths), "failed": failed,
-               "interrupted": interrupted, "window": w, "threshold": threshold,
-               "seconds": time.perf_counter() - t0, "changes": changes,
-               "provenance": provenance(cfg)}
-    write_atomic(os.path.join(out, "history.csv"), _csv(rows, names, X, S))
-    write_json(os.path.join(out, "changes.json"), summary)
-    if N:
-        plot_trend(os.path.join(out, "trend.png"), rows, names, X, S, changes, cfg.name)
-    write_batch_report(out, summary, rows, names, X, S)
+
+def _log_outcome(changes, failed, out, log):
     moved = {nm: c for nm, c in changes.items() if c}
     if moved:
         for nm, cs in moved.items():
@@ -245,4 +230,38 @@ def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, 
         log(f"warning: {len(failed)} record(s) gave no result: {', '.join(failed[:5])}"
             + (" ..." if len(failed) > 5 else ""))
     log(f"wrote {out}: history.csv, changes.json, trend.png, report.html")
+
+
+def run_batch(cfg, record_paths, out, resume=False, window=None, threshold=6.0, log=print):
+    """Update ``cfg``'s model from every record into folder ``out``; returns 0 or 130.
+
+    Records run on the case's executor (``search.executor``, ``workers``,
+    ``scheduler``): each record is one task, its starts run inside that task.
+    """
+    os.makedirs(out, exist_ok=True)
+    done_file = os.path.join(out, "records.jsonl")
+    done = _finished_records(done_file, resume)
+    todo = [p for p in record_paths if p not in done]
+    s = cfg.search
+    log(f"batch {cfg.name}: {len(record_paths)} records ({len(done)} already done), "
+        f"executor {s.executor}, {s.workers} worker(s)")
+    t0 = time.perf_counter()
+    interrupted = _update_records(cfg, todo, done, len(record_paths), done_file, log)
+    rows = [done[p] for p in record_paths if p in done]
+    names, X, S = history_table(rows)
+    N = len(rows)
+    w = window or int(np.clip(N // 8, 3, 10))
+    changes = _history_changes(rows, names, X, S, w, threshold)
+    failed = [r["record"] for r in rows if r["status"] != "ok"]
+    summary = {"case": cfg.name, "case_file": cfg.path, "records": N,
+               "records_requested": len(record_paths), "failed": failed,
+               "interrupted": interrupted, "window": w, "threshold": threshold,
+               "seconds": time.perf_counter() - t0, "changes": changes,
+               "provenance": provenance(cfg)}
+    write_atomic(os.path.join(out, "history.csv"), _csv(rows, names, X, S))
+    write_json(os.path.join(out, "changes.json"), summary)
+    if N:
+        plot_trend(os.path.join(out, "trend.png"), rows, names, X, S, changes, cfg.name)
+    write_batch_report(out, summary, rows, names, X, S)
+    _log_outcome(changes, failed, out, log)
     return 130 if interrupted else 0

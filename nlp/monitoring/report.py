@@ -1,18 +1,20 @@
 """Figures and report.html of a batch run (parameter history and its changes)."""
 
+import datetime as dt
 import html
 import os
 
+import matplotlib.dates as mdates
 import numpy as np
 from matplotlib.figure import Figure
+
+from nlp.output.results import write_atomic
 
 __all__ = ["plot_trend", "write_batch_report"]
 
 
 def _x_axis(rows):
     """Record times as datetimes when every record has one, else record numbers."""
-    import datetime as dt
-
     times = [r.get("time") for r in rows]
     if all(times):
         try:
@@ -54,8 +56,6 @@ def plot_trend(path, rows, names, X, S, changes, title):
                       "(bars: +-2 standard errors; dashed: detected change)", fontsize=9)
     axes[-1].set_xlabel(xlabel)
     if xlabel == "record time":
-        import matplotlib.dates as mdates
-
         loc = mdates.AutoDateLocator()
         axes[-1].xaxis.set_major_locator(loc)
         axes[-1].xaxis.set_major_formatter(mdates.ConciseDateFormatter(loc))
@@ -67,7 +67,6 @@ def plot_trend(path, rows, names, X, S, changes, title):
 
 def write_batch_report(out, summary, rows, names, X, S):
     """report.html: the changes, the trend figure and the history table."""
-    from nlp.output.results import write_atomic
 
     esc = html.escape
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{esc(summary['case'])}"

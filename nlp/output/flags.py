@@ -18,11 +18,11 @@ the top of report.html.
 
 import numpy as np
 
-__all__ = ["AT_BOUND", "bound_flag", "iteration_flag", "replay_flags", "LIMIT_STATUSES"]
+from nlp.solve.stopping import LIMIT_STATUSES
+
+__all__ = ["AT_BOUND", "bound_flag", "iteration_flag", "replay_flags"]
 
 AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, that counts as "on"
-LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
-                  "Maximum_WallTime_Exceeded", "Max_Iter_Exceeded")
 
 
 def bound_flag(name, value, lower, upper, unit, se_key):

@@ -14,8 +14,8 @@ from nlp.frf.reference import channel_frfs, modal_parameters
 from nlp.solve.identify import jacobian_report, standard_errors
 from nlp.frf.metrics import fdac
 
-__all__ = ["summarize", "write_atomic", "write_json", "parameters_table", "UNITS", "MATRIX_MAX",
-           "with_matrix_file", "load_matrices"]
+__all__ = ["summarize", "write_atomic", "write_json", "jsonable", "parameters_table", "UNITS",
+           "MATRIX_MAX", "with_matrix_file", "load_matrices"]
 
 UNITS = {"stiffness": "N/m", "mass": "kg", "damping": "-"}
 MATRIX_MAX = 200  # DOFs: above, M, K, C go to an NPZ file in sparse (CSC) form, not into the JSON
@@ -45,10 +45,11 @@ def _umask():
 
 def write_json(path, obj):
     """Write ``obj`` as indented JSON atomically (numpy arrays and scalars converted)."""
-    write_atomic(path, json.dumps(obj, indent=2, default=_jsonable) + "\n")
+    write_atomic(path, json.dumps(obj, indent=2, default=jsonable) + "\n")
 
 
-def _jsonable(x):
+def jsonable(x):
+    """``json.dumps`` default: numpy arrays as lists, numpy scalars as Python numbers."""
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, (np.floating, np.integer, np.bool_)):
@@ -107,19 +108,8 @@ def _modal(M, C, K):
     return {"natural_frequencies_hz": fn, "damping_ratios": zeta}
 
 
-def summarize(case, problem, search):
-    """The content of result.json for a finished (or interrupted) search."""
-    params = case.params
-    z_best = search.best.z
-    theta0 = np.array([p.initial for p in params.params])
-    theta = problem.theta(z_best)
-    r, J = problem.residuals(z_best)
-    G = problem.constraint_jacobian()
-    cov_z, s2, dof = standard_errors(J, r, problem.n_used, G)
-    cov_theta = params.T @ cov_z @ params.T.T
-    se_theta = np.sqrt(np.clip(np.diag(cov_theta), 0, None))
-    near = search.near_best
-    spread = search.spread(problem.theta)
+def _parameter_rows(params, theta0, theta, se_theta, spread):
+    """(rows, flags): one result.json row per parameter (physical values), at-bound flags."""
     rows = []
     flags = []
     for i, p in enumerate(params.params):
@@ -143,6 +133,38 @@ def summarize(case, problem, search):
             "spread_near_best": {"min": _physical(p, spread["min"][i]),
                                  "max": _physical(p, spread["max"][i])},
         })
+    return rows, flags
+
+
+def _search_section(cfg, search):
+    """The ``search`` entry of result.json: the starts and how the search ended."""
+    return {"seed": cfg.search.seed, "trial_points": search.n_trial,
+            "starts_requested": search.n_requested, "starts_finished": len(search.results),
+            "interrupted": search.interrupted, "seconds": search.seconds,
+            "starts_within_1pct_of_best": len(search.near_best),
+            "starts_resumed": search.resumed,
+            # starts that stopped at a limit but agree on the minimum (search.agreed_minimum)
+            "starts_agreeing_at_limit": list(search.agreed),
+            # success: converged (only those compete); f is null for a failed solve
+            "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
+                        "success": r.success, "status": r.status,
+                        "iterations": r.iterations, "seconds": r.seconds}
+                       for i, r in zip(search.indices, search.results)]}
+
+
+def summarize(case, problem, search):
+    """The content of result.json for a finished (or interrupted) search."""
+    params = case.params
+    z_best = search.best.z
+    theta0 = np.array([p.initial for p in params.params])
+    theta = problem.theta(z_best)
+    r, J = problem.residuals(z_best)
+    G = problem.constraint_jacobian()
+    cov_z, s2, dof = standard_errors(J, r, problem.n_used, G)
+    cov_theta = params.T @ cov_z @ params.T.T
+    se_theta = np.sqrt(np.clip(np.diag(cov_theta), 0, None))
+    search_doc = _search_section(case.config, search)
+    rows, flags = _parameter_rows(params, theta0, theta, se_theta, search.spread(problem.theta))
     M0, K0, C0 = problem.matrices(params.z0)
     M, K, C = problem.matrices(z_best)
     tg = case.target
@@ -178,18 +200,7 @@ def summarize(case, problem, search):
         "solver": {"name": cfg.solver.name, "options": cfg.solver.options,
                    "compiled": problem.compiled, "status": search.best.status,
                    "iterations": search.best.iterations, "seconds": search.best.seconds},
-        "search": {"seed": cfg.search.seed, "trial_points": search.n_trial,
-                   "starts_requested": search.n_requested, "starts_finished": len(search.results),
-                   "interrupted": search.interrupted, "seconds": search.seconds,
-                   "starts_within_1pct_of_best": len(near),
-                   "starts_resumed": search.resumed,
-                   # starts that stopped at a limit but agree on the minimum (search.agreed_minimum)
-                   "starts_agreeing_at_limit": list(search.agreed),
-                   # success: converged (only those compete); f is null for a failed solve
-                   "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
-                               "success": r.success, "status": r.status,
-                               "iterations": r.iterations, "seconds": r.seconds}
-                              for i, r in zip(search.indices, search.results)]},
+        "search": search_doc,
     }
 
 

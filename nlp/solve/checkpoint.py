@@ -20,6 +20,7 @@ import os
 import numpy as np
 
 from nlp.errors import InputError
+from nlp.solve.problem import LocalResult
 
 __all__ = ["Checkpoint", "checkpoint_path", "problem_hash"]
 
@@ -36,7 +37,7 @@ def problem_hash(problem, starts):
     """A hash of what decides every start's result: data, bounds, solver and the starts."""
     h = hashlib.sha256()
     lo, hi = problem.bounds
-    for a in (problem._p, problem.z0, lo, hi, starts):
+    for a in (problem.data_vector, problem.z0, lo, hi, starts):
         h.update(np.ascontiguousarray(a, dtype=float).tobytes())
     sc = problem.solver_config
     h.update(repr((problem.residual, sc.name, sorted(sc.nlpsol_options().items(), key=str),
@@ -61,8 +62,6 @@ class Checkpoint:
         With ``resume``, an update whose file is missing beside the checkpoints of
         earlier updates (the run stopped before reaching it) starts afresh.
         """
-        from nlp.solve.problem import LocalResult
-
         header = {"format": FORMAT, "hash": problem_hash(problem, starts), "seed": config.seed,
                   "starts": len(starts), "trial_factor": config.trial_factor,
                   "min_distance": config.min_distance}

@@ -3,9 +3,10 @@
 IPOPT is given the Gauss-Newton Hessian J^T J (cheap, positive semi-definite). Where
 the residuals are large (physics the model lacks) and the problem is curved, J^T J
 misses the second-order term sum r_i grad^2 r_i, and along a weakly determined
-direction (entries of a general C) the solver creeps to its iteration limit. Blind
-case 824513/12 (5 storeys, 25 parameters): 3000 iterations, a Gauss-Newton decrement
-of 325 at the end, and a Hessian with eigenvalues from 0.02 to 7e8. Newton steps on the
+direction (entries of a general C) the solver creeps to its iteration limit. Measured
+on a blind 5-storey frame with 25 parameters (docs/benchmarks/history.md): 3000
+iterations, a Gauss-Newton decrement of 325 at the end, and a Hessian with
+eigenvalues from 0.02 to 7e8. Newton steps on the
 full Hessian reach a stationary point from there in a few steps.
 
 The Hessian is the central finite difference of the exact gradient J^T r (2 n_z
@@ -16,6 +17,8 @@ are kept by stepping in their null space.
 """
 
 import numpy as np
+
+from nlp.solve.identify import tangent_basis
 
 __all__ = ["newton_polish", "NEWTON_STATIONARY", "MAX_PARAMETERS"]
 
@@ -64,8 +67,6 @@ def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY):
         decrement < tol.
     steps : int
     """
-    from nlp.solve.identify import tangent_basis
-
     z = np.clip(np.asarray(z, float), lo, hi)
     f, g = fg(z)
     dec = np.inf
@@ -81,52 +82,74 @@ def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY):
         H0 = _hessian(lambda x: fg(x)[1], z, free, lo, hi)
         if not (np.all(np.isfinite(H0)) and np.all(np.isfinite(g[free]))):
             return z, f, np.inf, False, step   # a neighbour where the model cannot be evaluated
-        # active set: a variable on a bound that the Newton step would push out is held
-        # as well (the Hessian couples it to the others) and the step is taken again
-        for _ in range(idx0.size):
-            keep = np.isin(idx0, np.flatnonzero(free))
-            Gf = None if G is None else np.asarray(G, float)[:, free]
-            N = tangent_basis(Gf, int(free.sum()))
-            H = N.T @ H0[np.ix_(keep, keep)] @ N
-            gN = N.T @ g[free]
-            ev, V = np.linalg.eigh(H) if H.size else (np.ones(0), np.zeros((0, 0)))
-            # modified Newton: a non-convex point takes the step of |H| (a descent direction)
-            scale = max(float(np.abs(ev).max()), 1e-300) if ev.size else 1.0
-            evm = np.maximum(np.abs(ev), 1e-12 * scale)
-            dy = -V @ ((V.T @ gN) / evm)
-            dz = np.zeros_like(z)
-            dz[free] = N @ dy
-            out = free & ((at_lo & (dz < -1e-15)) | (at_hi & (dz > 1e-15)))
-            if not out.any():
-                break
-            free = free & ~out
-            if not free.any():
-                return z, f, 0.0, True, step
-        pd = bool(ev.size == 0 or ev.min() > 1e-12 * scale)
-        dec = float(gN @ V @ ((V.T @ gN) / evm)) if pd and ev.size else (0.0 if pd else np.inf)
-        # a variable held on its bound whose gradient points inside is not at a minimum:
-        # what moving it alone would gain counts too (g_i^2 / H_ii)
-        held = np.isin(idx0, np.flatnonzero(free), invert=True)
-        if held.any():
-            gi, hii = g[idx0[held]], np.diag(H0)[held]
-            wrong = (at_lo[idx0[held]] & (gi < 0)) | (at_hi[idx0[held]] & (gi > 0))
-            with np.errstate(over="ignore"):   # a flat direction: inf, not a minimum
-                dec += float(np.sum(gi[wrong] ** 2 / np.maximum(hii[wrong], 1e-300)))
+        newton = _active_set_step(H0, g, z, free, idx0, at_lo, at_hi, G)
+        if newton is None:
+            return z, f, 0.0, True, step
+        dz, free, pd, dec = newton
+        dec += _held_decrement(H0, g, idx0, free, at_lo, at_hi)
         if pd and dec < tol:
             return z, f, dec, True, step
         if step == max_steps:
             break
-        # the longest step inside the bounds, so the equality stays satisfied
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(dz > 0, (hi - z) / dz, np.where(dz < 0, (lo - z) / dz, np.inf))
-        s = min(1.0, float(np.min(room)))
-        while s > 1e-6:
-            z_new = np.clip(z + s * dz, lo, hi)
-            f_new, g_new = fg(z_new)
-            if np.isfinite(f_new) and f_new <= f + 1e-4 * s * float(g[free] @ dz[free]):
-                break
-            s *= 0.5
-        else:
+        found = _line_search(fg, z, f, g, dz, free, lo, hi)
+        if found is None:
             return z, f, dec, False, step
-        z, f, g = z_new, f_new, g_new
+        z, f, g = found
     return z, f, dec, bool(dec < tol), max_steps
+
+
+def _active_set_step(H0, g, z, free, idx0, at_lo, at_hi, G):
+    """(dz, free, positive definite, decrement) of the modified Newton step on the free
+    variables ``free`` (indices idx0 into H0) and on G dz = 0; None when every variable
+    ends held on a bound."""
+    # active set: a variable on a bound that the Newton step would push out is held
+    # as well (the Hessian couples it to the others) and the step is taken again
+    for _ in range(idx0.size):
+        keep = np.isin(idx0, np.flatnonzero(free))
+        Gf = None if G is None else np.asarray(G, float)[:, free]
+        N = tangent_basis(Gf, int(free.sum()))
+        H = N.T @ H0[np.ix_(keep, keep)] @ N
+        gN = N.T @ g[free]
+        ev, V = np.linalg.eigh(H) if H.size else (np.ones(0), np.zeros((0, 0)))
+        # modified Newton: a non-convex point takes the step of |H| (a descent direction)
+        scale = max(float(np.abs(ev).max()), 1e-300) if ev.size else 1.0
+        evm = np.maximum(np.abs(ev), 1e-12 * scale)
+        dy = -V @ ((V.T @ gN) / evm)
+        dz = np.zeros_like(z)
+        dz[free] = N @ dy
+        out = free & ((at_lo & (dz < -1e-15)) | (at_hi & (dz > 1e-15)))
+        if not out.any():
+            break
+        free = free & ~out
+        if not free.any():
+            return None
+    pd = bool(ev.size == 0 or ev.min() > 1e-12 * scale)
+    dec = float(gN @ V @ ((V.T @ gN) / evm)) if pd and ev.size else (0.0 if pd else np.inf)
+    return dz, free, pd, dec
+
+
+def _held_decrement(H0, g, idx0, free, at_lo, at_hi):
+    """What moving alone each variable held on its bound with its gradient pointing inside
+    would gain, g_i^2 / H_ii: such a point is not at a minimum."""
+    held = np.isin(idx0, np.flatnonzero(free), invert=True)
+    if not held.any():
+        return 0.0
+    gi, hii = g[idx0[held]], np.diag(H0)[held]
+    wrong = (at_lo[idx0[held]] & (gi < 0)) | (at_hi[idx0[held]] & (gi > 0))
+    with np.errstate(over="ignore"):   # a flat direction: inf, not a minimum
+        return float(np.sum(gi[wrong] ** 2 / np.maximum(hii[wrong], 1e-300)))
+
+
+def _line_search(fg, z, f, g, dz, free, lo, hi):
+    """(z, f, gradient) after a backtracking (Armijo) step along dz, or None."""
+    # the longest step inside the bounds, so the equality stays satisfied
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(dz > 0, (hi - z) / dz, np.where(dz < 0, (lo - z) / dz, np.inf))
+    s = min(1.0, float(np.min(room)))
+    while s > 1e-6:
+        z_new = np.clip(z + s * dz, lo, hi)
+        f_new, g_new = fg(z_new)
+        if np.isfinite(f_new) and f_new <= f + 1e-4 * s * float(g[free] @ dz[free]):
+            return z_new, f_new, g_new
+        s *= 0.5
+    return None

@@ -16,7 +16,7 @@ lowest start index, so the answer depends only on the seed, not on the
 executor, the number of workers or the order in which starts finish.
 
 Starts are screened at a looser IPOPT tolerance when the case leaves it to us
-(:data:`nlp.solve.problem.SCREEN_TOL`); the ``POLISH`` lowest converged starts are then
+(:data:`nlp.solve.stopping.SCREEN_TOL`); the ``POLISH`` lowest converged starts are then
 re-solved at the full tolerance before the best is chosen.
 """
 
@@ -32,6 +32,8 @@ from scipy.stats import qmc
 
 from nlp.errors import SearchFailed
 from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
+from nlp.solve.problem import LocalResult
+from nlp.solve.stopping import LIMIT_STATUSES
 
 __all__ = ["SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search",
            "start_points", "converged", "solve_start", "default_workers"]
@@ -206,8 +208,6 @@ def solve_start(problem, z0, screen=False):
     stopped without converging keeps the objective evaluated at the point it
     returned (inf when that is not finite), never the solver's own report.
     """
-    from nlp.solve.problem import LocalResult
-
     t0 = time.perf_counter()
     try:
         res = problem.solve(z0, screen=True) if screen else problem.solve(z0)
@@ -248,9 +248,9 @@ def _polish(problem, results):
     for _, i in top:
         if str(results[i].status).startswith("Stationary"):
             # stationary by the Newton test at the screening stop: a full-tolerance
-            # IPOPT re-solve only creeps to its iteration limit again (blind 832173/51,
-            # a 5-storey null: with them, only the first round of refits after 7.5 min;
-            # without, the whole diagnosis in 7 min 41 s)
+            # IPOPT re-solve only creeps to its iteration limit again (measured on a blind
+            # 5-storey null case: re-solving them, the diagnosis had finished only its
+            # first round of refits after 7.5 min; skipping them, all of it took 7 min 41 s)
             continue
         r = results[i]
         p = solve_start(problem, r.z)
@@ -300,53 +300,82 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     if progress is None:
         progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
-    interrupted = False
-    own = executor is None
     setup = setup or Setup(value=problem)
-    stream = None
-    results = {}
     with interrupts_as_keyboard() as guard:
-        try:
-            if own:
-                executor = make_executor(config.executor, config.workers, config.scheduler)
-            starts, n_trial = start_points(problem, config, executor, setup)
-            if checkpoint is not None:
-                results = checkpoint.open(problem, config, starts)
-            resumed = len(results)
-            todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
-            best_f = min([r.f for r in results.values() if r.success] or [np.inf])
-            stream = executor.stream(setup, _solve_item, todo)
-            for i, res in stream:
-                with guard.deferred():  # a received start is always recorded
-                    results[i] = res
-                    if checkpoint is not None:
-                        checkpoint.append(i, res)
-                    if res.success:
-                        best_f = min(best_f, res.f)
-                    _progress(len(results), len(starts), best_f, progress)
-        except KeyboardInterrupt:
-            if stream is None:  # nothing was started: nothing to keep
-                raise
-            interrupted = True
-            with guard.deferred(swallow=True):
-                for i, res in stream.stop():
-                    results.setdefault(i, res)
-                    if checkpoint is not None:
-                        checkpoint.append(i, res)
-                if progress is not None:
-                    progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
-        finally:
-            with guard.deferred(swallow=True):
-                if stream is not None:
-                    stream.close()
-                if own and executor is not None:
-                    executor.close()
-                if checkpoint is not None:
-                    checkpoint.close()
+        run = _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
         with guard.deferred(swallow=True):  # a few solves; a Ctrl-C now waits for them
-            polished = _polish(problem, results)
+            polished = _polish(problem, run.results)
+    results = run.results
     indices = sorted(results)
     ordered = [results[i] for i in indices]
+    agreed, best = _best(problem, results, indices, ordered, run.interrupted)
+    return SearchResult(results=ordered, best=best, n_trial=run.n_trial,
+                        n_requested=run.n_requested, interrupted=run.interrupted,
+                        seconds=time.perf_counter() - t0, indices=indices, resumed=run.resumed,
+                        agreed=tuple(agreed), polished=polished)
+
+
+@dataclass
+class _StartsRun:
+    """The local solves of one search: {start index: LocalResult} and how they ran."""
+
+    results: dict
+    n_trial: int
+    n_requested: int
+    resumed: int
+    interrupted: bool
+
+
+def _solve_starts(problem, config, executor, setup, checkpoint, progress, guard):
+    """Solve the search's starts on the executor (one made from ``config`` when None),
+    recording each in the checkpoint; a KeyboardInterrupt keeps the finished ones."""
+    own = executor is None
+    interrupted = False
+    stream = None
+    results = {}
+    try:
+        if own:
+            executor = make_executor(config.executor, config.workers, config.scheduler)
+        starts, n_trial = start_points(problem, config, executor, setup)
+        if checkpoint is not None:
+            results = checkpoint.open(problem, config, starts)
+        resumed = len(results)
+        todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
+        best_f = min([r.f for r in results.values() if r.success] or [np.inf])
+        stream = executor.stream(setup, _solve_item, todo)
+        for i, res in stream:
+            with guard.deferred():  # a received start is always recorded
+                results[i] = res
+                if checkpoint is not None:
+                    checkpoint.append(i, res)
+                if res.success:
+                    best_f = min(best_f, res.f)
+                _progress(len(results), len(starts), best_f, progress)
+    except KeyboardInterrupt:
+        if stream is None:  # nothing was started: nothing to keep
+            raise
+        interrupted = True
+        with guard.deferred(swallow=True):
+            for i, res in stream.stop():
+                results.setdefault(i, res)
+                if checkpoint is not None:
+                    checkpoint.append(i, res)
+            if progress is not None:
+                progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
+    finally:
+        with guard.deferred(swallow=True):
+            if stream is not None:
+                stream.close()
+            if own and executor is not None:
+                executor.close()
+            if checkpoint is not None:
+                checkpoint.close()
+    return _StartsRun(results, n_trial, len(starts), resumed, interrupted)
+
+
+def _best(problem, results, indices, ordered, interrupted):
+    """(agreed starts, best result): the lowest converged objective, or the minimum that
+    starts stopped at a limit agree on (:func:`agreed_minimum`); ties to the lowest index."""
     good = [(r.f, i) for i, r in zip(indices, ordered) if r.success]
     dof = getattr(problem, "n_used", 0) - len(problem.z0)
     agreed = agreed_minimum(ordered, indices, rel=AGREE_CHI2 / max(dof, 1))
@@ -357,11 +386,7 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
             raise KeyboardInterrupt("interrupted before any local solve converged")
         raise SearchFailed(f"none of the {len(ordered)} local solves converged "
                            f"({_failure_summary(ordered)})")
-    best = results[min(good)[1]]  # lowest f; the lowest start index on ties
-    return SearchResult(results=ordered, best=best, n_trial=n_trial, n_requested=len(starts),
-                        interrupted=interrupted, seconds=time.perf_counter() - t0,
-                        indices=indices, resumed=resumed, agreed=tuple(agreed),
-                        polished=polished)
+    return agreed, results[min(good)[1]]  # lowest f; the lowest start index on ties
 
 
 AGREE_CHI2 = 0.1  # objectives closer than this in chi-square are one minimum
@@ -384,8 +409,6 @@ def agreed_minimum(results, indices, rel=1e-4, n_min=AGREE_MIN):
     direction; the result flags that). Returns the indices of the agreeing
     starts (converged ones included), or [] when the converged best stands.
     """
-    from nlp.output.flags import LIMIT_STATUSES
-
     f_conv = min([r.f for r in results if r.success] or [np.inf])
     stopped = [r.f for r in results
                if not r.success and r.status in LIMIT_STATUSES and np.isfinite(r.f)]

@@ -174,18 +174,11 @@ def _model_file(summary, out):
     return {**summary, "model": {**rest, "matrices": doc["model"]}}
 
 
-def run(cfg, out, log=print, resume=False, ckpt_out=None):
-    """Run a validated case into folder ``out``; returns the exit status (0 or 130).
-
-    Every finished start is kept in ``out.partial/`` (:mod:`nlp.solve.checkpoint`);
-    ``resume`` continues from it, and a completed run removes it. ``ckpt_out``:
-    the final --out when ``out`` is its staging folder (:mod:`nlp.output.outdir`), so the
-    checkpoint lives beside the final folder, where ``--resume`` looks.
-    """
+def _run_updates(cfg, out, log, prov, resume, ckpt_out):
+    """({label: (case, result)}, interrupted): the case's updates, one per channel group."""
     groups = cfg.updates or {None: None}
     results = {}
     interrupted = False
-    prov = provenance(cfg)
     for label, channels in groups.items():
         d = out if label is None else os.path.join(out, label)
         ckpt = Checkpoint(checkpoint_path(ckpt_out or out, label), resume=resume)
@@ -193,8 +186,12 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
         results[label] = (case, result)
         if interrupted:
             break
-    mats = [r["matrices"]["updated"] for _, r in results.values()]
-    model = tuple(np.mean([np.asarray(m[k]) for m in mats], axis=0) for k in "MKC")
+    return results, interrupted
+
+
+def _summary(cfg, results, model, interrupted, prov):
+    """summary.json of the averaged model against every update's data (before validation
+    and replay)."""
     M, K, C = model
     fn, zeta, _ = modal_parameters(M, C, K)
     summary = {"case": cfg.name, "updates": [k for k in results if k is not None],
@@ -219,14 +216,23 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
     if not cfg.data.has_phase:
         summary["needs_phase"] = {"metrics": ["FRAC", "MAC"], "reason": f"data.format "
                                   f"{cfg.data.format} has no phase; FDAC compares magnitudes"}
-    if len(results) > 1:
-        avg = {}
-        for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
-            avg[name] = float(np.mean([{p["name"]: p["updated"] for p in r["parameters"]}[name]
-                                       for _, r in results.values()]))
-        summary["average_parameters"] = avg
-        write_atomic(os.path.join(out, "table1.csv"), _table1(results, avg))
-    log("final model: " + ", ".join(f"{f:.3f} Hz ({100 * z:.2f} %)" for f, z in zip(fn, zeta)))
+    return summary
+
+
+def _average_parameters(results):
+    """Each parameter's updated value averaged over the updates."""
+    avg = {}
+    for name in [p["name"] for p in next(iter(results.values()))[1]["parameters"]]:
+        avg[name] = float(np.mean([{p["name"]: p["updated"] for p in r["parameters"]}[name]
+                                   for _, r in results.values()]))
+    return avg
+
+
+def _log_model(summary, log):
+    """The final model's modes, FDAC, peak-picked modes and data quality."""
+    model = summary["model"]
+    log("final model: " + ", ".join(f"{f:.3f} Hz ({100 * z:.2f} %)" for f, z in
+                                    zip(model["natural_frequencies_hz"], model["damping_ratios"])))
     log("FDAC: " + ", ".join(f"{k} {v:.4f}" for k, v in summary["fdac"].items()))
     for label, rows in summary["modes"].items():
         log(f"measured modes ({label}, peak picking) vs model: " + "; ".join(
@@ -234,37 +240,69 @@ def run(cfg, out, log=print, resume=False, ckpt_out=None):
             + ("MAC needs phase" if r["mac"] is None else f"MAC {r['mac']:.3f}") for r in rows))
     if "data_quality" in summary:
         _log_quality(summary["data_quality"], log)
+
+
+def _validation(cfg, model, results, out, log):
+    """The averaged model against the held-out test file: summary entry and overlays."""
+    vcfg = cfg
+    if cfg.data.validation_force_floor is not None:
+        vcfg = replace(cfg, excitation=ExcitationConfig("force", cfg.data.validation_force_floor))
+    vcase = assemble(vcfg, data_file=cfg.data.validation_file)
+    per, overall, _ = _fdac_of(model, vcase)
+    entry = {"file": cfg.data.validation_file, "fdac": per,
+             "fdac_overall": overall,
+             "excitation": {"type": vcase.target.excitation,
+                            "floor": None if vcase.target.force_dof is None
+                            else vcase.target.force_dof + 1},
+             "frequencies_hz": (vcase.target.omega / (2 * np.pi))}
+    vdir = os.path.join(out, "validation")
+    os.makedirs(vdir, exist_ok=True)
+    first = next(iter(results.values()))[1]["matrices"]["initial"]
+    plot_frf_overlays(vdir, vcase, tuple(np.asarray(first[k]) for k in "MKC"), model)
+    log(f"held-out test {os.path.basename(cfg.data.validation_file)}: FDAC "
+        + ", ".join(f"{k} {v:.4f}" for k, v in per.items()))
+    return entry
+
+
+def _time_domain(model, records, cfg, out, log):
+    """(summary entry, flags): the measured input replayed through the model, per channel."""
+    M, K, C = model
+    reps = replay(M, C, K, records, cfg.data)
+    entry = {}
+    for name, rep in reps.items():
+        plot_replay(out, name, rep, cfg.closeup_seconds)
+        entry[name] = {k: rep[k] for k in ("quantity", "nrmse", "correlation", "peak_error")}
+    log("time domain NRMSE: " + ", ".join(f"{k} {100 * v['nrmse']:.1f} %"
+                                         for k, v in entry.items()))
+    rflags = replay_flags(entry)
+    _log_flags(rflags, log)
+    return entry, rflags
+
+
+def run(cfg, out, log=print, resume=False, ckpt_out=None):
+    """Run a validated case into folder ``out``; returns the exit status (0 or 130).
+
+    Every finished start is kept in ``out.partial/`` (:mod:`nlp.solve.checkpoint`);
+    ``resume`` continues from it, and a completed run removes it. ``ckpt_out``:
+    the final --out when ``out`` is its staging folder (:mod:`nlp.output.outdir`), so the
+    checkpoint lives beside the final folder, where ``--resume`` looks.
+    """
+    prov = provenance(cfg)
+    results, interrupted = _run_updates(cfg, out, log, prov, resume, ckpt_out)
+    mats = [r["matrices"]["updated"] for _, r in results.values()]
+    model = tuple(np.mean([np.asarray(m[k]) for m in mats], axis=0) for k in "MKC")
+    summary = _summary(cfg, results, model, interrupted, prov)
+    if len(results) > 1:
+        avg = _average_parameters(results)
+        summary["average_parameters"] = avg
+        write_atomic(os.path.join(out, "table1.csv"), _table1(results, avg))
+    _log_model(summary, log)
     if cfg.data.validation_file:
-        vcfg = cfg
-        if cfg.data.validation_force_floor is not None:
-            vcfg = replace(cfg, excitation=ExcitationConfig("force", cfg.data.validation_force_floor))
-        vcase = assemble(vcfg, data_file=cfg.data.validation_file)
-        per, overall, _ = _fdac_of(model, vcase)
-        summary["validation"] = {"file": cfg.data.validation_file, "fdac": per,
-                                 "fdac_overall": overall,
-                                 "excitation": {"type": vcase.target.excitation,
-                                                "floor": None if vcase.target.force_dof is None
-                                                else vcase.target.force_dof + 1},
-                                 "frequencies_hz": (vcase.target.omega / (2 * np.pi))}
-        vdir = os.path.join(out, "validation")
-        os.makedirs(vdir, exist_ok=True)
-        first = next(iter(results.values()))[1]["matrices"]["initial"]
-        plot_frf_overlays(vdir, vcase, tuple(np.asarray(first[k]) for k in "MKC"), model)
-        log(f"held-out test {os.path.basename(cfg.data.validation_file)}: FDAC "
-            + ", ".join(f"{k} {v:.4f}" for k, v in per.items()))
+        summary["validation"] = _validation(cfg, model, results, out, log)
     records = next(iter(results.values()))[0].records
     if records is not None:
-        reps = replay(M, C, K, records, cfg.data)
-        summary["time_domain"] = {}
-        for name, rep in reps.items():
-            plot_replay(out, name, rep, cfg.closeup_seconds)
-            summary["time_domain"][name] = {k: rep[k] for k in ("quantity", "nrmse", "correlation",
-                                                               "peak_error")}
-        log("time domain NRMSE: " + ", ".join(f"{k} {100 * v['nrmse']:.1f} %"
-                                             for k, v in summary["time_domain"].items()))
-        rflags = replay_flags(summary["time_domain"])
+        summary["time_domain"], rflags = _time_domain(model, records, cfg, out, log)
         summary["flags"] += rflags
-        _log_flags(rflags, log)
     write_json(os.path.join(out, "summary.json"), _model_file(summary, out))
     write_report(out)
     if interrupted:

@@ -542,7 +542,7 @@ def test_local_sigma_of_a_windowed_estimate_counts_its_correlated_bins():
     standard deviation (np.std of the errors themselves); read as independent bins it
     understates it by sqrt(6 / 2.5) = 1.55."""
     from nlp.diagnosis.band import local_sigma
-    from nlp.frf.noise import second_difference_factor
+    from nlp.frf.scatter import second_difference_factor
     rng = np.random.default_rng(3)
     n, taps = 20000, np.array([-0.25, 0.5, -0.25])   # a Hann window in the frequency domain
 

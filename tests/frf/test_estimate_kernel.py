@@ -1,4 +1,4 @@
-"""The model seen through a Welch estimate's window (Target.kernel, nlp.frf.noise.smoothing_taps).
+"""The model seen through a Welch estimate's window (Target.kernel, nlp.frf.kernel.smoothing_taps).
 
 For a flat input spectrum the expected Welch H1 is the true FRF convolved with the
 window's power kernel |W(nu)|^2 (normalised); here that convolution is computed by
@@ -15,7 +15,7 @@ from helpers_case import write_case
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
 from nlp.frf.reference import modal_parameters
-from nlp.frf.noise import smoothing_taps
+from nlp.frf.kernel import smoothing_taps
 from nlp.solve.problem import SolverConfig, UpdatingProblem
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import noise_sim as sf
-from nlp.frf import noise
+from nlp.frf import kernel, noise, scatter, variance
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
 
@@ -61,18 +61,18 @@ def test_transient_variance_matches_monte_carlo():
     est = np.log((Hk * U + ny) / (U + nx))
     p_xx = np.array([abs(U) ** 2 + s_nx])
     p_yy = np.array([[abs(Hk * U) ** 2 + s_ny]])
-    var = noise.var_ln_transient(p_xx, p_yy, np.array([s_nx]), np.array([[s_ny]]))[0, 0]
+    var = variance.var_ln_transient(p_xx, p_yy, np.array([s_nx]), np.array([[s_ny]]))[0, 0]
     assert np.var(est.real) == pytest.approx(var, rel=0.05)
     assert np.var(est.imag) == pytest.approx(var, rel=0.05)
 
 
 def test_welch_overlap_correction():
     """Hann at 50 % overlap: rho_1 = 1/6, so n_eff = n_d / (1 + 2 (1 - 1/n_d) / 36)."""
-    n_d, n_eff = noise.welch_averages(1024 * 10, 1024, 512, "hann")
+    n_d, n_eff = kernel.welch_averages(1024 * 10, 1024, 512, "hann")
     assert n_d == 19
     assert n_eff == pytest.approx(19 / (1 + 2 * (1 - 1 / 19) / 36), rel=1e-3)
-    assert noise.welch_averages(4096, 1024, 0, "hann") == (4, 4.0)
-    assert noise.kernel_moment("hann", 4096) == pytest.approx(1 / 3, rel=1e-4)
+    assert kernel.welch_averages(4096, 1024, 0, "hann") == (4, 4.0)
+    assert kernel.kernel_moment("hann", 4096) == pytest.approx(1 / 3, rel=1e-4)
 
 
 def test_chirp_noise_above_last_mode_is_not_a_mode(tmp_path):
@@ -101,11 +101,11 @@ def test_resolution_bias_of_a_flat_noisy_estimate_is_its_noise():
     _, sxx = signal.welch(x, nperseg=1024)
     H = (sxy / sxx)[None, 5:-5]
     s_true = np.std(np.log(np.abs(H)))
-    m2 = noise.kernel_moment("hann", 1024)
-    b2 = np.mean(noise.resolution_bias(H, m2)[0, 1:-1] ** 2)
-    expect = (0.5 * m2) ** 2 * noise.second_difference_factor("hann") * s_true ** 2
+    m2 = kernel.kernel_moment("hann", 1024)
+    b2 = np.mean(kernel.resolution_bias(H, m2)[0, 1:-1] ** 2)
+    expect = (0.5 * m2) ** 2 * scatter.second_difference_factor("hann") * s_true ** 2
     assert b2 == pytest.approx(expect, rel=0.1)
-    s, _ = noise.local_scatter(np.arange(H.shape[1], dtype=float), H, window="hann")
+    s, _ = scatter.local_scatter(np.arange(H.shape[1], dtype=float), H, window="hann")
     assert np.median(s) == pytest.approx(s_true, rel=0.1)
 
 
@@ -166,13 +166,13 @@ def test_an_averaged_file_carries_its_window_kernel():
     and a = m2^2 / (2 m4) = 1/6. A file without coherence is taken as such an average
     too; one that states a single average, or window none, has no kernel."""
     cfg, f, _ = _file_case()
-    h, a = noise.estimator_kernel(cfg, f, None, np.ones((1, f.size)), 13)
+    h, a = kernel.estimator_kernel(cfg, f, None, np.ones((1, f.size)), 13)
     assert h == pytest.approx(2 * math.pi * 0.025, rel=1e-3)
     assert a == pytest.approx(1 / 6, rel=1e-3)
-    assert noise.estimator_kernel(cfg, f, None, None, None) == pytest.approx((h, a))
-    assert noise.estimator_kernel(cfg, f, None, np.ones((1, f.size)), 1) is None
+    assert kernel.estimator_kernel(cfg, f, None, None, None) == pytest.approx((h, a))
+    assert kernel.estimator_kernel(cfg, f, None, np.ones((1, f.size)), 1) is None
     cfg_none, _, _ = _file_case(window="none")
-    assert noise.estimator_kernel(cfg_none, f, None, np.ones((1, f.size)), 13) is None
+    assert kernel.estimator_kernel(cfg_none, f, None, np.ones((1, f.size)), 13) is None
 
 
 def test_file_coherence_variance_counts_overlapping_averages():
@@ -180,7 +180,7 @@ def test_file_coherence_variance_counts_overlapping_averages():
     independent ones (Welch 1967, rho_1 = 1/6): Var ln|H| = (1 - g^2) / (2 n_eff g^2).
     With the window's kernel in the model the fit's sigma holds no resolution bias."""
     cfg, f, case = _file_case()
-    case.kernel = noise.estimator_kernel(cfg, f, None, case.coherence, 13)
+    case.kernel = kernel.estimator_kernel(cfg, f, None, case.coherence, 13)
     m = noise.noise_model(case)
     n_eff = 13 / (1 + 2 * (1 - 1 / 13) / 36)
     assert m.route == "frf_coherence"
@@ -207,7 +207,7 @@ def test_file_noise_with_the_kernel_covers_the_leakage_at_a_sharp_peak(zeta):
     for seed in range(20):
         f, H, Ht = _welch_file_of_a_sharp_mode(seed, zeta)
         df = f[1] - f[0]
-        h, w = noise.smoothing_taps("hann", nperseg)
+        h, w = kernel.smoothing_taps("hann", nperseg)
         Hs = sum(g * signal.freqz(b, a, worN=f + s * h * df, fs=fs)[1]
                  for g, s in ((w, -1), (1 - 2 * w, 0), (w, 1)))
         m = noise.noise_model(SimpleNamespace(config=cfg, f=f, H=H[None], coherence=None,

@@ -1,9 +1,9 @@
-"""Scatter noise of a windowed FRF estimate (nlp.frf.noise.local_scatter) against the truth."""
+"""Scatter noise of a windowed FRF estimate (nlp.frf.scatter.local_scatter) against the truth."""
 
 import numpy as np
 from scipy import signal
 
-from nlp.frf.noise import local_scatter, second_difference_factor
+from nlp.frf.scatter import local_scatter, second_difference_factor
 
 
 def test_hann_factor_from_the_window_transform():
@@ -33,7 +33,7 @@ def test_scatter_of_a_welch_h1_matches_its_actual_error():
 
 
 def test_bins_three_apart_are_uncorrelated_for_hann():
-    from nlp.frf.noise import correlation_lag
+    from nlp.frf.scatter import correlation_lag
     # w^2 of Hann holds cos x and cos 2x only, so c_l = 0 from l = 3 on
     assert correlation_lag("hann") == 3
     assert correlation_lag("none") == 1
@@ -66,7 +66,7 @@ def test_spaced_scatter_reads_leakage_and_noise_alike():
     """Errors of unit sd either way: adjacent second differences (factor 2.5 for Hann
     noise) read leakage-type errors sqrt(11.67 / 2.5) = 2.2 x too large; third
     differences of bins three apart read both as they are."""
-    from nlp.frf.noise import spaced_scatter
+    from nlp.frf.scatter import spaced_scatter
     rng = np.random.default_rng(4)
     f = np.arange(4000) * 0.01
     for leakage in (False, True):
@@ -83,7 +83,7 @@ def test_spaced_scatter_reads_leakage_and_noise_alike():
 
 
 def test_spaced_scatter_of_pure_noise_needs_no_window_factor():
-    from nlp.frf.noise import spaced_scatter
+    from nlp.frf.scatter import spaced_scatter
     rng = np.random.default_rng(3)
     fs, n = 100.0, 2 ** 17
     x = rng.standard_normal(n)

@@ -232,7 +232,7 @@ def test_second_run_on_a_locked_out_is_refused(case, tmp_path):
     path, _, _ = case
     out = str(tmp_path / "out")
     holder = subprocess.Popen([sys.executable, "-c",
-                               "import sys, time; from nlp import outdir\n"
+                               "import sys, time; from nlp.output import outdir\n"
                                "with outdir.output_folder(sys.argv[1]):\n"
                                "    print('locked', flush=True); time.sleep(60)\n", out],
                               env=dict(os.environ, PYTHONPATH=ROOT), stdout=subprocess.PIPE,

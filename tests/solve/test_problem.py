@@ -98,7 +98,7 @@ def test_stationarity_is_the_residual_seen_by_the_jacobian(tmp_path):
     """The Gauss-Newton decrement g^T (J^T J)^-1 g equals |Q^T r|^2, the part of the
     residual that the Jacobian's columns can reach (Q: orthonormal basis of range J), at
     an interior point without constraints. A solve ends stationary: below STATIONARY."""
-    from nlp.solve.problem import STATIONARY
+    from nlp.solve.stopping import STATIONARY
     case, pr, _ = _problem(tmp_path, noise=0.02)
     assert pr.constraint_jacobian().shape[0] == 0
     z = pr.z0 + 0.05 * np.random.default_rng(2).standard_normal(pr.params.n_z)

@@ -8,7 +8,7 @@ import pytest
 from helpers_case import write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
-from nlp.solve.problem import SCREEN_TOL
+from nlp.solve.stopping import SCREEN_TOL
 from nlp.solve.search import POLISH, SearchConfig, scatter_search, solve_start
 
 

@@ -11,6 +11,8 @@ matrices   MAT, NPZ and Matrix Market (.mtx) exports (ABAQUS, ANSYS,
 """
 
 from nlp.io.importers.dofs import DOF_LABELS, dof_number, find_dof, ground_influence
+from nlp.io.importers.matrices import load_matrices
+from nlp.io.importers.opensees import load_opensees
 
 __all__ = ["DOF_LABELS", "dof_number", "find_dof", "ground_influence", "load_model"]
 
@@ -24,8 +26,6 @@ def load_model(model_cfg, case_path):
     case_path : str
         The case file, named in input errors.
     """
-    if model_cfg.type == "opensees":
-        from nlp.io.importers.opensees import load_opensees
+    if model_cfg.type == "opensees":  # openseespy is imported when the script runs
         return load_opensees(model_cfg, case_path)
-    from nlp.io.importers.matrices import load_matrices
     return load_matrices(model_cfg, case_path)

@@ -19,6 +19,8 @@ that finished meanwhile, and then ``stream.close()``.
 """
 
 from nlp.solve.executors.base import Executor, Setup, Stream, TaskFailed
+from nlp.solve.executors.dask import DaskExecutor
+from nlp.solve.executors.local import LocalExecutor, SerialExecutor
 from nlp.solve.executors.signals import interrupts_as_keyboard
 
 __all__ = ["Executor", "Setup", "Stream", "TaskFailed", "EXECUTORS", "make_executor",
@@ -44,12 +46,9 @@ def make_executor(kind="local", workers=1, scheduler=None):
         Address of a running Dask scheduler.
     """
     if kind == "local":
-        from nlp.solve.executors.local import LocalExecutor
         return LocalExecutor(workers)
     if kind == "serial":
-        from nlp.solve.executors.local import SerialExecutor
         return SerialExecutor()
-    if kind == "dask":
-        from nlp.solve.executors.dask import DaskExecutor
+    if kind == "dask":  # dask and distributed are imported when the executor starts
         return DaskExecutor(workers, scheduler)
     raise ValueError(f"executor must be one of {EXECUTORS}, got {kind!r}")

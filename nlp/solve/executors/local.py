@@ -9,6 +9,7 @@ item's result comes back on its own as soon as it is done.
 """
 
 from collections import deque
+import ctypes
 import math
 import multiprocessing as mp
 from multiprocessing.connection import wait
@@ -39,7 +40,6 @@ def _die_with_parent(parent_pid):
     reads them, so that thread outlives its workers.
     """
     try:
-        import ctypes
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
     except (OSError, AttributeError, TypeError):
