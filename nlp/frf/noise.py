@@ -48,6 +48,8 @@ import numpy as np
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
+from nlp.io.quality import true_runs
+
 __all__ = ["NoiseModel", "noise_model", "sigma_ln", "welch_averages", "var_ln_welch",
            "var_ln_transient", "kernel_moment", "smoothing_taps", "estimator_kernel",
            "resolution_bias", "rest_mask",
@@ -304,12 +306,6 @@ def rest_mask(x, y, fs, block_s=None, contrast=8.0, margin=1.5):
     return mask
 
 
-def _runs(mask):
-    """(start, stop) of the contiguous True runs of mask."""
-    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
 def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
     """Noise spectral density (one-sided, unit^2/Hz) of records in their rest portions.
 
@@ -323,7 +319,7 @@ def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
     ndarray, shape (n_ch, f.size), or None when the rest runs are too short.
     """
     v = np.atleast_2d(v)
-    runs = [(a, b) for a, b in _runs(mask)]
+    runs = [(a, b) for a, b in true_runs(mask)]
     longest = max((b - a for a, b in runs), default=0)
     nper = int(2 ** math.floor(math.log2(max(min(longest, max_nperseg), 1))))
     if nper < 16:
