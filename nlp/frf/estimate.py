@@ -13,7 +13,7 @@ from scipy import signal
 
 from nlp.errors import InputError
 
-__all__ = ["FRFEstimate", "ESTIMATORS", "estimate_frf", "hv_tls"]
+__all__ = ["FRFEstimate", "ESTIMATORS", "estimate_frf", "hv_tls", "default_nperseg"]
 
 ESTIMATORS = ("H1", "H2", "Hv")
 
@@ -69,7 +69,7 @@ def _as_signals(x, y, source):
     return x, y
 
 
-def _default_nperseg(n):
+def default_nperseg(n):
     """Largest power of two <= N/8, so Welch averages ~15 half-overlapping segments."""
     return int(2 ** np.floor(np.log2(max(n // 8, 1))))
 
@@ -77,7 +77,7 @@ def _default_nperseg(n):
 def _check_segments(n, nperseg, noverlap, source):
     """Resolve the Welch segment length and overlap, in samples."""
     if nperseg is None:
-        nperseg = _default_nperseg(n)
+        nperseg = default_nperseg(n)
     if int(nperseg) != nperseg or nperseg < 2:
         raise InputError(source, "nperseg", "an integer number of samples >= 2", got=nperseg)
     nperseg = int(nperseg)

@@ -31,6 +31,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from nlp.case.schema import RESIDUALS, SOLVERS
 from nlp.solve.codegen import compile_library
 from nlp.frf.reference import BASE_DOF
 from nlp.frf.backends import choose as choose_backend
@@ -39,11 +40,9 @@ from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
 from nlp.solve.polish import MAX_PARAMETERS, newton_polish
 
-__all__ = ["RESIDUALS", "SOLVERS", "Channel", "Target", "SolverConfig", "LocalResult",
+__all__ = ["Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
 
-RESIDUALS = ("log_magnitude", "magnitude", "complex")
-SOLVERS = ("ipopt", "sqpmethod")
 
 SCREEN_TOL = 1e-5  # IPOPT tol of screening solves (the default tol is 1e-8)
 # A point is stationary when a Gauss-Newton step would lower the chi-square 2 f by less than
