@@ -6,7 +6,10 @@ and exits with status 2, without a traceback. Programming errors stay ordinary
 exceptions.
 """
 
-__all__ = ["InputError", "SearchFailed"]
+__all__ = ["InputError", "SearchFailed", "ARGUMENTS", "WHOLE_FILE"]
+
+ARGUMENTS = "<arguments>"   # the "file" of a bad command-line argument or function argument
+WHOLE_FILE = "<file>"       # the "key" of an error about a whole file (missing, unreadable)
 
 
 class InputError(ValueError):
@@ -15,7 +18,7 @@ class InputError(ValueError):
     Parameters
     ----------
     file : str
-        The file the bad value came from (or ``"<arguments>"`` for the CLI).
+        The file the bad value came from (or ``ARGUMENTS`` for the CLI).
     key : str
         The key, column or channel that is wrong, as a dotted path
         (``"model.masses[2]"``).

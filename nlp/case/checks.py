@@ -10,6 +10,7 @@ that are not finite at the start point.
 import numpy as np
 
 from nlp.errors import InputError
+from nlp.frf.freqsel import band_mask
 
 __all__ = ["check_model_matrices", "check_free_parameters", "check_total_mass",
            "check_data_points", "check_points_inside", "check_frf_alive", "check_record_alive",
@@ -136,8 +137,8 @@ def check_coherence(cfg, f, coherence, names, keys, n_averages):
     from several averages only: with one average the coherence is 1 by construction)."""
     if coherence is None or n_averages < 16:
         return
-    from nlp.frf.freqsel import frequency_mask  # config validated fmin < fmax already
-    band = (f > 0) & frequency_mask(f, cfg.frequencies.fmin, cfg.frequencies.fmax)
+    # the loader validated fmin < fmax already: band_mask cannot refuse them here
+    band = (f > 0) & band_mask(f, cfg.frequencies.fmin, cfg.frequencies.fmax)
     for c, (name, key) in enumerate(zip(names, keys)):
         top = float(np.max(coherence[c, band])) if band.any() else 0.0
         if top < MIN_COHERENCE:

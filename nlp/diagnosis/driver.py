@@ -29,7 +29,8 @@ import os
 
 import numpy as np
 
-from nlp.case.assemble import assemble, selectable
+from nlp.case.assemble import assemble
+from nlp.case.selection import selectable
 from nlp.solve.identify import tangent_basis
 from nlp.frf.noise import describe as describe_noise
 from nlp.case.checks import check_start_residuals
@@ -861,7 +862,7 @@ def _loss_finding(best, ties):
 # ------------------------------------------------------------- other tests
 def _other_tests(cfg):
     """(label, config, data file) of the case's other tests of the same structure."""
-    from nlp.case.load import ExcitationConfig
+    from nlp.case.schema import ExcitationConfig
     d = cfg.data
     out = []
     if d.validation_file:
@@ -982,7 +983,7 @@ def _hold_on_others(others, state, accepted, log):
 # --------------------------------------------------------------- whole band
 def _whole_band(case, base, zb, improved, zi, fit):
     """Residual map over every coherently measured frequency and the extra modes."""
-    from nlp.case.assemble import _detection_form
+    from nlp.case.selection import detection_form
     from nlp.diagnosis.band import (MAX_SCATTER, band_map, band_mask, extra_modes, hot_spots,
                                  local_sigma)
     fc = case.config.frequencies
@@ -999,7 +1000,7 @@ def _whole_band(case, base, zb, improved, zi, fit):
     ex = case.target.excitation
 
     def ln_det(H):
-        return np.log(np.abs(_detection_form(f, H, case.channels, ex)) + 1e-300)
+        return np.log(np.abs(detection_form(f, H, case.channels, ex)) + 1e-300)
 
     Lx = ln_det(case.H[:, idx])
     from nlp.frf.scatter import second_difference_factor

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from nlp.case.assemble import _half_power
+from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
 from nlp.diagnosis.families import extend_parameters, references
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
@@ -153,6 +153,6 @@ def _windows(cfg, case, mult):
     if mult == 1:
         return case.selected
     c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
-    idx = np.asarray(_half_power(c, case.f, case.H, case.channels, case.target.excitation,
+    idx = np.asarray(half_power_points(c, case.f, case.H, case.channels, case.target.excitation,
                                  case.coherence, case.noise.detect), int)
     return idx[case.f[idx] > 0]

@@ -29,6 +29,7 @@ import math
 import numpy as np
 from scipy.signal import get_window
 
+from nlp.frf.forms import POWER
 from nlp.frf.reference import BASE_DOF
 
 __all__ = ["story_vectors", "force_frfs", "out_of_band", "harmonic_location",
@@ -59,12 +60,11 @@ def force_frfs(M, C, K, omega, B, channels):
     """
     omega = np.asarray(omega, float)
     out = np.zeros((omega.size, len(channels), B.shape[1]), complex)
-    power = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
     for i, w in enumerate(omega):
         X = np.linalg.solve(K - w * w * M + 1j * w * C, B)
         for c, ch in enumerate(channels):
             if ch.dof != BASE_DOF:
-                out[i, c] = (1j * w) ** power[ch.output] * X[ch.dof]
+                out[i, c] = (1j * w) ** POWER[ch.output] * X[ch.dof]
     return out
 
 

@@ -116,7 +116,7 @@ def _inside_model_class(cfg, case, state, absorbed, log):
 
 
 def _dashpot_refit(case, state):
-    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.assemble.dashpot_damping`).
+    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.parameters.dashpot_damping`).
 
     A general C has n (n + 1) / 2 parameters, and a decomposition of its point estimate
     carries all their scatter (blind seed 601329: five true dampers missed, two nulls'
@@ -125,7 +125,7 @@ def _dashpot_refit(case, state):
     ln N, as in BIC), its story dashpots are estimated directly, with their own errors.
     Starts: the non-negative decomposition of the fitted general C, and Rayleigh.
     """
-    from nlp.case.assemble import dashpot_damping
+    from nlp.case.parameters import dashpot_damping
     from nlp.diagnosis.priors import decompose_damping
     pr, z = state["problem"], state["z"]
     damping, params = dashpot_damping(case)

@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 
-from nlp.case.assemble import _half_power, assemble
+from nlp.case.assemble import assemble
+from nlp.case.selection import half_power_points
 from nlp.solve.search import SearchConfig
 from nlp.diagnosis.fitting import _fit, _normalised, _problem, _quasi_se, _search, _target, noise_sigma
 
@@ -366,7 +367,7 @@ def _nonlinearity(cfg, log):
     # held-out check on the other level: its own equivalent model against the reference one
     c = lv["case"]
     cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
-    wide = np.asarray(_half_power(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
+    wide = np.asarray(half_power_points(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
                                   c.noise.detect), int)
     held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
     sig = noise_sigma(c, held)

@@ -43,7 +43,7 @@ that nlp/quality.py found when the records were read are reported as warnings.
 import numpy as np
 from scipy import linalg, signal
 
-from nlp.case.assemble import _detection_form
+from nlp.case.selection import detection_form
 
 __all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swap_test"]
 
@@ -241,7 +241,7 @@ def screen(case):
     names = [ch.name for ch in case.channels]
     floors = [ch.dof + 1 for ch in case.channels]
     ex = case.target.excitation
-    D = _detection_form(case.f, case.H, case.channels, ex)
+    D = detection_form(case.f, case.H, case.channels, ex)
     idx = _band(case)
     errors, warnings, checks = [], [], {}
     peaks = resonances(case.f, D, idx, case.model.n + 2) if idx.size > 4 else np.array([], int)

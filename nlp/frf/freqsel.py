@@ -16,8 +16,8 @@ from scipy import signal
 from nlp.errors import InputError
 from nlp.frf.scatter import local_scatter
 
-__all__ = ["find_peaks", "half_power_band", "select_frequencies", "plot_selection", "peak_curve",
-           "frequency_mask"]
+__all__ = ["band_mask", "find_peaks", "half_power_band", "select_frequencies", "plot_selection",
+           "peak_curve"]
 
 _SRC = "<arguments>"
 
@@ -33,7 +33,7 @@ def _check_fh(f, H):
     return f, H
 
 
-def frequency_mask(f, fmin, fmax):
+def band_mask(f, fmin, fmax):
     """Boolean mask of fmin <= f <= fmax [Hz] (open ends when None)."""
     lo = -np.inf if fmin is None else fmin
     hi = np.inf if fmax is None else fmax
@@ -94,7 +94,7 @@ def find_peaks(f, H, n_peaks=None, prominence_db=6.0, fmin=None, fmax=None, min_
     f, H = _check_fh(f, H)
     if n_peaks is not None and (int(n_peaks) != n_peaks or n_peaks < 1):
         raise InputError(_SRC, "n_peaks", "a positive integer", got=n_peaks)
-    sel = np.flatnonzero(frequency_mask(f, fmin, fmax))
+    sel = np.flatnonzero(band_mask(f, fmin, fmax))
     # Peaks of every channel and of the channel sum: a mode that one channel
     # barely shows (or that the 1/w^2 fall of a receptance hides in the sum)
     # is still found in another.
@@ -374,7 +374,7 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
             raise InputError(_SRC, "prominence_db", "a setting that finds at least one peak "
                              "(lower it, widen fmin/fmax or give explicit bands)",
                              got=prominence_db)
-        inside = np.flatnonzero(frequency_mask(f, fmin, fmax))
+        inside = np.flatnonzero(band_mask(f, fmin, fmax))
         parts = [_peak_points(f, ip, half_power_band(f, peak_curve(f, H, ip), ip), k,
                               int(min_points_per_peak)) for ip in peaks]
         idx = np.intersect1d(np.concatenate(parts), inside)

@@ -13,13 +13,12 @@ same DOFs measures shape agreement.
 
 import numpy as np
 
+from nlp.frf.forms import POWER
 from nlp.frf.freqsel import find_peaks, half_power_band, peak_curve
 from nlp.frf.reference import BASE_DOF, modal_parameters
 from nlp.frf.metrics import mac, modal_errors
 
 __all__ = ["pick_modes", "compare_modes"]
-
-_POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
 def _receptance_form(f, H, channels):
@@ -27,7 +26,7 @@ def _receptance_form(f, H, channels):
     out = np.empty_like(H)
     for c, ch in enumerate(channels):
         h = H[c] - 1.0 if ch.output == "absolute_accelerance" else H[c]
-        out[c] = h / np.where(jw == 0, 1, jw) ** _POWER[ch.output]
+        out[c] = h / np.where(jw == 0, 1, jw) ** POWER[ch.output]
     return out
 
 

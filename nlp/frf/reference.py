@@ -25,6 +25,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
+from nlp.frf.forms import OUTPUTS, POWER
+
 __all__ = [
     "OUTPUTS",
     "EXCITATIONS",
@@ -40,9 +42,7 @@ __all__ = [
     "BASE_DOF",
 ]
 
-OUTPUTS = ("receptance", "mobility", "accelerance", "absolute_accelerance")
 EXCITATIONS = ("ground", "force")
-_POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
 def load_vector(M, excitation="ground", force_dof=None, r=None):
@@ -62,9 +62,9 @@ def load_vector(M, excitation="ground", force_dof=None, r=None):
 
 def output_factor(omega, output):
     """(jw)^p for receptance (p=0), mobility (1), accelerance (2) (Eqns 18-19)."""
-    if output not in _POWER:
+    if output not in POWER:
         raise ValueError(f"output must be one of {OUTPUTS}, got {output!r}")
-    return (1j * np.asarray(omega)) ** _POWER[output]
+    return (1j * np.asarray(omega)) ** POWER[output]
 
 
 def _apply_output(Hq, omega, output):

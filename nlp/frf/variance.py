@@ -8,6 +8,8 @@ import numpy as np
 from scipy import signal
 from scipy.special import exp1
 
+from nlp.io.quality import true_runs
+
 __all__ = ["VAR_LN_MAX", "SIGMA_FLOOR", "var_ln_welch", "var_ln_transient", "rest_mask",
            "rest_noise_psd"]
 
@@ -98,12 +100,6 @@ def rest_mask(x, y, fs, block_s=None, contrast=8.0, margin=1.5):
     return mask
 
 
-def _runs(mask):
-    """(start, stop) of the contiguous True runs of mask."""
-    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
 def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
     """Noise spectral density (one-sided, unit^2/Hz) of records in their rest portions.
 
@@ -117,7 +113,7 @@ def rest_noise_psd(v, fs, mask, f, max_nperseg=128):
     ndarray, shape (n_ch, f.size), or None when the rest runs are too short.
     """
     v = np.atleast_2d(v)
-    runs = [(a, b) for a, b in _runs(mask)]
+    runs = [(a, b) for a, b in true_runs(mask)]
     longest = max((b - a for a, b in runs), default=0)
     nper = int(2 ** math.floor(math.log2(max(min(longest, max_nperseg), 1))))
     if nper < 16:

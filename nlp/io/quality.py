@@ -26,7 +26,7 @@ from itertools import combinations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-__all__ = ["Glitch", "QualityReport", "detect_glitches", "repair", "screen_records"]
+__all__ = ["Glitch", "QualityReport", "detect_glitches", "repair", "screen_records", "true_runs"]
 
 SPIKE_THRESHOLD = 8.0        # robust standard deviations
 DROPOUT_MIN_SAMPLES = 5      # identical samples in a row
@@ -72,7 +72,7 @@ class QualityReport:
                 "glitches_not_listed": max(len(self.glitches) - max_listed, 0)}
 
 
-def _runs(mask):
+def true_runs(mask):
     """(start, stop) of the runs of True in a boolean vector."""
     d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
@@ -137,7 +137,7 @@ def detect_glitches(x, spike_threshold=SPIKE_THRESHOLD, dropout_min_samples=DROP
     out = []
     same = np.concatenate([[False], x[1:] == x[:-1]])
     stuck = np.zeros(x.size, bool)
-    for a, b in _runs(same):       # a run of repeats starts one sample earlier
+    for a, b in true_runs(same):       # a run of repeats starts one sample earlier
         if b - a + 1 >= dropout_min_samples:
             stuck[a - 1:b] = True
             out.append(("dropout", int(a - 1), int(b)))
@@ -152,13 +152,13 @@ def detect_glitches(x, spike_threshold=SPIKE_THRESHOLD, dropout_min_samples=DROP
     hot[:4] = hot[-4:] = False  # the cubic needs two samples each side of a window
     near = np.convolve(hot, np.ones(7), mode="same") > 0  # clusters: hot samples within 3
     bad = np.zeros(x.size, bool)
-    for a, b in _runs(near):
+    for a, b in true_runs(near):
         a, b = max(a, 4), min(b, x.size - 4)
         # a few spikes make short clusters; a long hot run is signal (a fast chirp
         # against quiet rest portions) and would make the search combinatorial
         if 5 <= b - a <= 40:
             bad[_resolve(x, a, b, limit)] = True
-    out += [("spike", int(a), int(b)) for a, b in _runs(bad & ~stuck)]
+    out += [("spike", int(a), int(b)) for a, b in true_runs(bad & ~stuck)]
     return sorted(out, key=lambda g: g[1])
 
 

@@ -97,8 +97,7 @@ def update_record(cfg, path):
         s = cfg.search
         # the record is already one task of the batch's executor: its starts run here
         with make_executor("serial") as ex:
-            search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                          seed=s.seed, workers=1),
+            search = scatter_search(problem, SearchConfig.of(s, workers=1),
                                     progress=io.StringIO(), executor=ex)
         res = summarize(case, problem, search)
     except InputError as exc:

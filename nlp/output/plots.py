@@ -10,14 +10,12 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
+from nlp.frf.forms import QUANTITY
 from nlp.frf.reference import channel_frfs
 
 __all__ = ["plot_frf_overlays", "save_figure", "new_figure", "frf_quantity", "MIN_PHASE_COHERENCE"]
 
 MIN_PHASE_COHERENCE = 0.5   # below it the measured phase is noise: not drawn
-_QTY = {"receptance": ("displacement", "m"), "mobility": ("velocity", "m/s"),
-        "accelerance": ("acceleration", "m/s^2"),
-        "absolute_accelerance": ("absolute acceleration", "m/s^2")}
 
 
 def frf_quantity(output, excitation):
@@ -27,7 +25,7 @@ def frf_quantity(output, excitation):
     For ground input the FRF is per unit ground acceleration, and the response is
     relative to the ground except ``absolute_accelerance`` (Eqns 16-19).
     """
-    what, unit = _QTY[output]
+    what, unit = QUANTITY[output]
     if excitation == "force":
         return f"{what} per force ({output})", f"({unit})/N" if "/" in unit else f"{unit}/N"
     rel = "" if output == "absolute_accelerance" else "relative "

@@ -21,7 +21,7 @@ re-solved at the full tolerance before the best is chosen.
 """
 
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 import os
 import sys
 import time
@@ -35,25 +35,36 @@ from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
 from nlp.solve.problem import LocalResult
 from nlp.solve.stopping import LIMIT_STATUSES
 
-__all__ = ["SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search",
+__all__ = ["SearchSettings", "SearchConfig", "SearchResult", "trial_points", "pick_starts", "scatter_search",
            "start_points", "converged", "solve_start", "default_workers"]
 
 IPOPT_CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
 
 @dataclass(frozen=True)
-class SearchConfig:
-    """starts: local solves; trial_factor: trial points per start; seed; workers;
-    min_distance: minimum distance between starts in the unit box (0..sqrt(n));
-    executor: ``local``, ``dask`` or ``serial``; scheduler: a Dask scheduler address."""
+class SearchSettings:
+    """The settings a case file's search section and a scatter search share."""
 
-    starts: int = 20
-    trial_factor: int = 10
-    seed: int = 0
-    workers: int = 1
+    starts: int = 20                       # local solves of the scatter search
+    trial_factor: int = 10                 # trial points per start
+    seed: int = 0                          # seed of the trial points
+    workers: int = 1                       # worker processes
+    executor: str = "local"      # where local solves run (nlp.solve.executors): local | dask | serial
+    scheduler: str = None        # Dask scheduler address, e.g. tcp://10.0.0.5:8786
+
+
+@dataclass(frozen=True)
+class SearchConfig(SearchSettings):
+    """The shared :class:`SearchSettings` and min_distance: minimum distance between
+    starts in the unit box (0..sqrt(n))."""
+
     min_distance: float = 0.1
-    executor: str = "local"
-    scheduler: str = None
+
+    @classmethod
+    def of(cls, settings, **changes):
+        """The search config of any SearchSettings (a case's search section), with changes."""
+        shared = {f.name: getattr(settings, f.name) for f in fields(SearchSettings)}
+        return cls(**{**shared, **changes})
 
 
 @dataclass

@@ -14,9 +14,10 @@ import time
 
 import numpy as np
 
-from nlp.case.assemble import _detection_form, assemble, build_problem, detection_noise
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.selection import detection_form, detection_noise
 from nlp.solve.checkpoint import Checkpoint, checkpoint_path
-from nlp.case.load import ExcitationConfig
+from nlp.case.schema import ExcitationConfig
 from nlp.frf.reference import channel_frfs, modal_parameters
 from nlp.output.flags import replay_flags
 from nlp.frf.freqsel import plot_selection
@@ -46,9 +47,7 @@ def _update(cfg, label, channels, out, log, prov, checkpoint=None):
     problem = build_problem(case)
     log(f"{tag}NLP built in {time.perf_counter() - t0:.2f} s ({problem.describe()})")
     s = cfg.search
-    search = scatter_search(problem, SearchConfig(starts=s.starts, trial_factor=s.trial_factor,
-                                                  seed=s.seed, workers=s.workers,
-                                                  executor=s.executor, scheduler=s.scheduler),
+    search = scatter_search(problem, SearchConfig.of(s),
                             setup=Setup(build_problem, case, value=problem), checkpoint=checkpoint)
     if search.resumed:
         log(f"{tag}resumed {search.resumed} finished starts from {checkpoint.path}")
@@ -130,7 +129,7 @@ def _modes_of(model, case):
     """Peak-picked modes of the measured FRFs against the model (frequency, damping, MAC)."""
     M, K, C = model
     fc = case.config.frequencies
-    det = _detection_form(case.f, case.H, case.channels, case.target.excitation)
+    det = detection_form(case.f, case.H, case.channels, case.target.excitation)
     sigma = None if case.noise is None else \
         detection_noise(case.f, case.H, det, case.channels, case.noise.detect)
     return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,

@@ -198,7 +198,7 @@ def test_selectable_keeps_the_band_and_the_structure_channels_coherence():
     fmin, fmax and min_coherence as the half-power selection does; a base sensor's
     coherence does not rule a point out (its peaks are not looked for either)."""
     from types import SimpleNamespace
-    from nlp.case.assemble import selectable
+    from nlp.case.selection import selectable
     from nlp.frf.reference import BASE_DOF
     f = np.linspace(0.0, 20.0, 201)                  # 0.1 Hz steps
     coh = np.full((3, f.size), 0.9)

@@ -12,9 +12,9 @@ leading minor of Z is non-singular.
 
 import casadi as ca
 
-__all__ = ["complex_solve", "frf_symbolic"]
+from nlp.frf.forms import POWER
 
-_POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
+__all__ = ["complex_solve", "frf_symbolic"]
 
 
 def complex_solve(Zr, Zi, br, bi):
@@ -60,7 +60,7 @@ def frf_symbolic(M, C, K, w, b, output="receptance", Kh=None):
     n = M.shape[0]
     Zi = w * C if Kh is None else w * C + Kh
     hr, hi = complex_solve(K - w**2 * M, Zi, b, ca.SX.zeros(n))
-    p = _POWER[output]
+    p = POWER[output]
     if p == 1:  # jw H
         hr, hi = -w * hi, w * hr
     elif p == 2:  # -w^2 H

@@ -25,11 +25,12 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import casadi as ca
 
+from nlp.frf.forms import POWER
+
 __all__ = ["SparseFRF", "BAND_MAX"]
 
 BAND_MAX = 40  # half-bandwidth up to which the banded LU beats SuperLU (measured at n = 2000)
 BATCH_MAX = 24  # up to this size one batched dense LU over all frequencies beats the banded LU (measured)
-_POWER = {"receptance": 0, "mobility": 1, "accelerance": 2, "absolute_accelerance": 2}
 
 
 def _aggregate(mats, W, n):
@@ -132,7 +133,7 @@ class SparseFRF:
         sa, sb, sd = params.slices()
         self.sa, self.sb, self.sd = sa, sb, sd
         self.na, self.nb = sa.stop - sa.start, sb.stop - sb.start
-        self.power = np.array([_POWER[ch.output] for ch in target.channels])
+        self.power = np.array([POWER[ch.output] for ch in target.channels])
         self.absolute = np.array([ch.output == "absolute_accelerance" for ch in target.channels])
         # damping structure (cM, cK, S, g) and its Jacobian in theta_d, one small SX function
         nd = sd.stop - sd.start

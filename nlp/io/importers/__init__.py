@@ -22,7 +22,7 @@ def load_model(model_cfg, case_path):
 
     Parameters
     ----------
-    model_cfg : nlp.case.load.ModelConfig
+    model_cfg : nlp.case.schema.ModelConfig
     case_path : str
         The case file, named in input errors.
     """

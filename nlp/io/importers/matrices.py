@@ -174,7 +174,7 @@ def _file(spec):
 def load_matrices(cfg, case_path):
     """StructuralModel from separate matrix files named in the case (see module docstring).
 
-    cfg : nlp.case.load.ModelConfig with M, K, stiffness_groups, mass_groups,
+    cfg : nlp.case.schema.ModelConfig with M, K, stiffness_groups, mass_groups,
     dof_map, constrained (paths already absolute).
     """
     if cfg.file is not None:
