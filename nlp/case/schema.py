@@ -14,6 +14,8 @@ from nlp.frf.reference import EXCITATIONS
 from nlp.io.quality import DROPOUT_MIN_SAMPLES, SPIKE_THRESHOLD
 from nlp.io.readers import FRF_FORMATS, MAGNITUDE_ONLY
 from nlp.solve.executors import EXECUTORS
+from nlp.solve.problem import SOLVERS
+from nlp.solve.residuals import RESIDUALS
 from nlp.solve.search import SearchSettings
 
 __all__ = ["CaseConfig", "ModelConfig", "ParameterConfig", "DampingConfig", "ExcitationConfig",
@@ -23,8 +25,6 @@ __all__ = ["CaseConfig", "ModelConfig", "ParameterConfig", "DampingConfig", "Exc
            "DATA_FORMATS", "DB_FORMATS", "MAGNITUDE_ONLY", "ESTIMATORS", "INPUT_QUANTITIES",
            "CHANNEL_QUANTITIES", "FREQUENCY_METHODS", "EXECUTORS"]
 
-RESIDUALS = ("log_magnitude", "magnitude", "complex")
-SOLVERS = ("ipopt", "sqpmethod")
 MODEL_TYPES = ("shear_frame", "matrices", "opensees")
 DAMPING_MODELS = ("general", "rayleigh", "modal", "modal_general", "dashpots")
 DATA_TYPES = ("frf", "time_histories")

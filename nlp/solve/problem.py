@@ -32,19 +32,19 @@ import time
 import casadi as ca
 import numpy as np
 
-from nlp.case.schema import RESIDUALS, SOLVERS
 from nlp.frf.backends import choose as choose_backend
 from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
 from nlp.solve.polish import MAX_PARAMETERS, newton_polish
-from nlp.solve.residuals import data_arrays, frequency_functions, pack_data
+from nlp.solve.residuals import RESIDUALS, data_arrays, frequency_functions, pack_data
 from nlp.solve.stopping import STATIONARY, gauss_newton_decrement
 
-__all__ = ["Channel", "Target", "SolverConfig", "LocalResult",
+__all__ = ["SOLVERS", "Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
 
+SOLVERS = ("ipopt", "sqpmethod")
 
 _DEFAULT_OPTIONS = {
     "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-8,

@@ -20,8 +20,12 @@ import numpy as np
 from nlp.frf.backends.dense import frf_symbolic
 from nlp.frf.reference import BASE_DOF
 
-__all__ = ["FrequencyFunctions", "pack_data", "data_arrays", "data_symbols", "system_sx",
+__all__ = ["RESIDUALS", "FrequencyFunctions", "pack_data", "data_arrays", "data_symbols", "system_sx",
            "load_vector", "frequency_functions"]
+
+# The residual forms of the objective (Eqn 25): ln|H| (the default, far better conditioned
+# than the paper's squared magnitudes), |H|, or the complex FRF
+RESIDUALS = ("log_magnitude", "magnitude", "complex")
 
 
 @dataclass(frozen=True)
