@@ -71,9 +71,9 @@ IMPORTS = _imports(MODS)
 
 def _edges():
     edges = {m: set() for m in MODS}
-    for mod, tgt, name, _ in IMPORTS:
-        if tgt is None or tgt.split(".")[0] != "nlp":
-            continue
+    for mod, tgt, name, fn in IMPORTS:
+        if tgt is None or tgt.split(".")[0] != "nlp" or (mod, fn) in LAZY:
+            continue  # a lazy import runs after its module has loaded: no cycle at import
         full = f"{tgt}.{name}" if name else tgt
         edges[mod].add(full if full in MODS else tgt)
     return edges
