@@ -16,8 +16,7 @@ import pytest
 from nlp.monitoring.campaign import find_records, record_time
 from nlp.monitoring.changes import detect_changes
 from nlp.cli import main
-
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+from support.paths import ROOT
 
 
 def test_no_false_alarm_on_noise_drift_and_daily_cycle():
