@@ -1,6 +1,6 @@
 """Wall time of `frf-nlp diagnose` on a 5-storey frame with a 200-s random record.
 
-The case comes from scripts/make_benchmark.py (shaker at floor 1, 1 % sensor noise,
+The case comes from nlp/testing/benchmark.py (shaker at floor 1, 1 % sensor noise,
 Welch H1 FRFs; an added mass at floor 3 unless --null). Prints the time of the whole
 diagnosis and its verdict.
 
@@ -9,16 +9,12 @@ diagnosis and its verdict.
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from make_benchmark import make_case  # noqa: E402
-
-from nlp.case.load import load_case  # noqa: E402
-from nlp.diagnosis.driver import diagnose  # noqa: E402
+from nlp.case.load import load_case
+from nlp.diagnosis.driver import diagnose
+from nlp.testing.benchmark import make_case
 
 
 def main():

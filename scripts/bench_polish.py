@@ -11,16 +11,12 @@ seconds, f (= chi-square / 2), the status, and the Gauss-Newton decrement at the
 """
 
 import argparse
-import os
-import sys
 import time
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-
-from nlp.diagnosis import driver as dg  # noqa: E402
-from nlp.solve import problem as pm  # noqa: E402
-from nlp.case.assemble import assemble  # noqa: E402
-from nlp.case.load import load_case  # noqa: E402
+from nlp.diagnosis import driver as dg
+from nlp.solve import problem as pm
+from nlp.case.assemble import assemble
+from nlp.case.load import load_case
 
 
 def run(label, case, target, solves):

@@ -45,6 +45,10 @@ from nlp.frf.backends.system import LinearSystem  # noqa: E402
 from nlp.model.nominal import shear_frame  # noqa: E402
 from nlp.model.parameters import Parameter, ParameterSet  # noqa: E402
 from nlp.solve.problem import Channel, Target, UpdatingProblem  # noqa: E402
+from nlp.case.assemble import assemble, build_problem  # noqa: E402
+from nlp.case.load import load_case  # noqa: E402
+from nlp.solve.continuation import band_continuation  # noqa: E402
+from nlp.workflow.recentre import recentre  # noqa: E402
 
 SIZES = (4, 8, 16, 32, 64, 128, 256, 512, 1000, 2000)
 GROUPS = 8
@@ -154,21 +158,17 @@ def run_frame(n, args):
 
 
 def run_case(path, args):
-    from nlp.case.assemble import assemble, build_problem
-    from nlp.case.load import load_case
     case = assemble(load_case(path))
     problem, build = cold_build(lambda: build_problem(case))
     results = [problem.solve(z) for z in starts(problem, args.starts, args.seed)]
     best = min(results, key=lambda r: r.f)
     if case.config.search.band_continuation:  # as frf-nlp run does: one more start
-        from nlp.solve.continuation import band_continuation
         c_problem, c_res = band_continuation(case, case.config.search.band_continuation,
                                              log=lambda m: None)
         if c_res.success and c_res.f < best.f:
             problem, best = c_problem, c_res
     recentred = None
     if problem.backend == "reduced":  # as frf-nlp run does: re-centre the basis on the fit
-        from nlp.workflow.recentre import recentre
         problem, best, recentred = recentre(case, problem, best, log=lambda m: None)
     err = float("nan")
     truth_file = os.path.join(os.path.dirname(os.path.abspath(path)), "truth.json")

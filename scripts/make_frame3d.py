@@ -12,7 +12,7 @@ alpha_r from U(-0.15, 0.15) by the seed; Rayleigh damping, 2 % at the 1st and
 corner, 0.3-12 Hz log-spaced, with 2 % complex Gaussian noise. With Rayleigh
 damping the sum over all 2,100 undamped modes is the exact FRF; it is written
 here (not the package's FRF code) and checked against sparse direct solves of
-(K - w^2 M + jwC) q = b (scripts/sparse_sim.py) at a few frequencies.
+(K - w^2 M + jwC) q = b (nlp/testing/sparse_sim.py) at a few frequencies.
 
     python scripts/make_frame3d.py [--seed 0] [--noise 0.02] [--out DIR]
 """
@@ -25,7 +25,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from nlp.io.importers.opensees import assemble_script
-from sparse_sim import add_noise, frf_sparse, generator_args, write_case
+from nlp.testing.sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "frame3d_2100")

@@ -15,12 +15,13 @@ written here (not the package's FRF code), with 2 % complex Gaussian noise.
 """
 
 import os
+import shutil
 
 import numpy as np
 import scipy.linalg as sla
 
 from nlp.io.importers.opensees import assemble_script
-from sparse_sim import add_noise, frf_sparse, generator_args, write_case
+from nlp.testing.sparse_sim import add_noise, frf_sparse, generator_args, write_case
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "opensees_frame")
@@ -88,7 +89,6 @@ def main():
     f, H, truth, (f_sway, _, _) = make(a.seed, a.noise, os.path.join(CASE, "frame.py"))
     write_case(a.out, f, H, truth, case_yaml(f_sway))
     if os.path.abspath(a.out) != os.path.abspath(CASE):
-        import shutil
         shutil.copy(os.path.join(CASE, "frame.py"), a.out)
     print(f"wrote {a.out}: {H.shape[0]} channels x {f.size} points, {truth['n_dof']} DOFs; "
           f"sway modes {np.round(f_sway, 2)} Hz")

@@ -36,7 +36,7 @@ from collections import defaultdict
 
 import numpy as np
 
-SIZE_DETECTABLE = 2      # size rank (0..4) from which an effect counts as detectable
+from nlp.testing.blind.structures import SIZE_DETECTABLE, SIZES
 
 
 def _same_location(a, b):
@@ -150,7 +150,7 @@ def summary(rows, sizes):
                   f"{sum(abs(c - 1) <= 2 * sd for c, sd in sds)}/{len(sds)}; SDs "
                   f"{min(sd for _, sd in sds):.2f}-{max(sd for _, sd in sds):.2f}")
     print("\ndetection limits: effects found with the right family and location, per size "
-          "(size: the family's dimensionless measure; see SIZES in make_blind_benchmark.py)")
+          "(size: the family's dimensionless measure; see SIZES in nlp/testing/blind/structures.py)")
     table = defaultdict(lambda: defaultdict(list))
     for e in eff:
         table[e["family"]][e["rank"]].append(e["location_ok"])
@@ -171,8 +171,6 @@ def main():
     ap.add_argument("--jobs", type=int, default=1, help="cases run at the same time")
     ap.add_argument("--summary-only", action="store_true", help="print the scores already in the file")
     a = ap.parse_args()
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from make_blind_benchmark import SIZES
     log = os.path.join(a.bench, "scores.jsonl")
     rows = {}
     if os.path.isfile(log):

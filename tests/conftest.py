@@ -1,4 +1,4 @@
-"""Shared fixtures: the paper's four-story frame (Table 1) and random systems."""
+"""Shared fixtures and options (`--slow`); shared helpers are in tests/support."""
 
 import os
 import sys
@@ -10,43 +10,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "scripts"))
-for _d in ("", "case", "diagnosis"):
-    sys.path.insert(0, os.path.join(HERE, _d))
-
-# shear-frame stiffness written independently of the package (one copy, with the
-# independent simulator of the noise tests)
-from noise_sim import shear_K  # noqa: E402,F401
-
-TABLE1_INITIAL_M = np.full(4, 4.64)
-TABLE1_INITIAL_K = np.array([1019.0, 1217.0, 1420.0, 2473.0])
-
-
-def frame_parameter_set(m, k, damping):
-    """ParameterSet of a shear frame: free story stiffness changes, fixed masses, and the
-    damping model's own parameters (for tests that build an UpdatingProblem by hand)."""
-    from nlp.model.parameters import Parameter, ParameterSet
-
-    n = len(k)
-    ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=k[i]) for i in range(n)]
-    ps += [Parameter(f"m{i + 1}", "mass", 0.0, -0.5, 1.0, fixed=True, nominal=m[i])
-           for i in range(n)]
-    lo, hi = damping.default_bounds()
-    ps += [Parameter(nm, "damping", t, a, b) for nm, t, a, b in
-           zip(damping.names, damping.initial(), lo, hi)]
-    return ParameterSet(tuple(ps), n, n)
-
-
-def random_system(n, rng):
-    """Random SPD M, K and a non-proportional SPD C."""
-    A = rng.standard_normal((n, n))
-    M = A @ A.T + n * np.eye(n)
-    B = rng.standard_normal((n, n))
-    K = 100 * (B @ B.T + n * np.eye(n))
-    D = rng.standard_normal((n, n))
-    C = 0.5 * (D @ D.T) + 0.1 * np.eye(n)
-    return M, C, K
+# the shared helpers are the package tests/support: `from support.frames import shear_K`
+# from any test folder
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
 def pytest_addoption(parser):

@@ -7,12 +7,13 @@ import pytest
 import scipy.io
 import yaml
 
-from conftest import TABLE1_INITIAL_K, TABLE1_INITIAL_M, shear_K
-from helpers_case import write_case
+from support.cases import write_case
+from support.frames import TABLE1_INITIAL_K, TABLE1_INITIAL_M, shear_K
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.errors import InputError
 from nlp.frf.reference import frf_dynamic_stiffness
+from nlp.testing.four_story import MASSES, STIFFNESSES, true_damping
 
 
 def _write_model(folder, ext):
@@ -58,7 +59,6 @@ def test_matrix_model_from_npz_and_mat_recovers_truth(tmp_path):
 
 
 def test_tied_stiffnesses_share_one_variable(tmp_path):
-    from make_four_story import MASSES, true_damping
     k = np.array([1054.98, 1300.0, 1300.0 * 1420 / 1217, 2738.17])  # k2, k3: same relative change
     M, K = np.diag(MASSES), shear_K(k)
     f = np.arange(0.02, 8, 0.02)
@@ -73,7 +73,6 @@ def test_tied_stiffnesses_share_one_variable(tmp_path):
 
 
 def test_rayleigh_damping_case_recovers_rayleigh_truth(tmp_path):
-    from make_four_story import MASSES, STIFFNESSES
     M, K = np.diag(MASSES), shear_K(STIFFNESSES)
     a0, a1 = 0.12, 0.0018
     f = np.arange(0.02, 8, 0.02)

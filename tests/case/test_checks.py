@@ -1,58 +1,18 @@
 """Never a silently wrong answer: impossible inputs are refused before solving (exit 2,
 one line naming file and key, no traceback, nothing created or changed in --out)."""
 
-import contextlib
-import hashlib
-import io
 import os
-import subprocess
-import sys
-import types
 
 import numpy as np
 import pytest
 import yaml
 
-from helpers_case import write_case
-from nlp.cli import main
 from nlp.case.load import load_case
 from nlp.errors import InputError
-
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-
-
-def cli(*args, env=None, **kw):
-    """The real command in a subprocess (exit status, stderr, no traceback as a user sees)."""
-    e = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    e.update(env or {})
-    return subprocess.run([sys.executable, "-m", "nlp", *map(str, args)], capture_output=True,
-                          text=True, env=e, timeout=240, **kw)
-
-
-def cli_inproc(*args):
-    """The same entry point in this process (saves a CasADi import per input mistake); an
-    exception escaping main() would be the traceback a user sees, and fails the test."""
-    err, out = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-        rc = main([str(a) for a in args])
-    return types.SimpleNamespace(returncode=rc, stdout=out.getvalue(), stderr=err.getvalue())
-
-
-def snapshot(folder):
-    """Every file under folder (and the siblings a run could leave) -> sha256."""
-    out = {}
-    parent = os.path.dirname(folder)
-    for name in sorted(os.listdir(parent)):
-        p = os.path.join(parent, name)
-        if not name.startswith(os.path.basename(folder)):
-            continue
-        if os.path.isfile(p):
-            out[name] = hashlib.sha256(open(p, "rb").read()).hexdigest()
-        for root, _, files in os.walk(p):
-            for f in files:
-                q = os.path.join(root, f)
-                out[os.path.relpath(q, parent)] = hashlib.sha256(open(q, "rb").read()).hexdigest()
-    return out
+from nlp.testing.four_story import make
+from support.cases import write_case
+from support.cli import cli, cli_inproc, snapshot
+from support.frames import shear_K
 
 
 def assert_refused(proc, file, key, out, before):
@@ -161,7 +121,6 @@ def test_no_free_parameter(case_dir, tmp_path):
 def _matrix_case(case_dir, **arrays):
     d, path, _ = case_dir()
     k = np.array([1019.0, 1217, 1420, 2473])
-    from conftest import shear_K
     Ki = [shear_K(k * np.eye(4)[r]) for r in range(4)]
     Mi = [np.diag(4.64 * np.eye(4)[r]) for r in range(4)]
     mats = {"M0": np.diag([4.64] * 4), "K0": shear_K(k), "M_infl": np.array(Mi),
@@ -176,7 +135,6 @@ def _matrix_case(case_dir, **arrays):
 
 
 def test_non_symmetric_K0_names_the_model_file(case_dir, tmp_path):
-    from conftest import shear_K
     K0 = shear_K([1019.0, 1217, 1420, 2473])
     K0[0, 1] += 50.0
     d, path = _matrix_case(case_dir, K0=K0)
@@ -184,7 +142,6 @@ def test_non_symmetric_K0_names_the_model_file(case_dir, tmp_path):
 
 
 def test_non_symmetric_influence_matrix(case_dir, tmp_path):
-    from conftest import shear_K
     Ki = np.array([shear_K(np.array([1019.0, 1217, 1420, 2473]) * np.eye(4)[r]) for r in range(4)])
     Ki[2, 1, 2] += 10.0
     d, path = _matrix_case(case_dir, K_infl=Ki)
@@ -202,7 +159,6 @@ def test_name_count_mismatch_names_the_names_key(case_dir, tmp_path):
 
 
 def test_dead_channel_names_its_column(case_dir, tmp_path):
-    from make_four_story import make
     f, H, _ = make(seed=0, noise=0.0)
     H = H.copy()
     H[2] = 0.0
@@ -212,7 +168,6 @@ def test_dead_channel_names_its_column(case_dir, tmp_path):
 
 
 def test_zero_value_gives_an_error_naming_the_channel(case_dir, tmp_path):
-    from make_four_story import make
     f, H, _ = make(seed=0, noise=0.0)
     H = H.copy()
     k = int(np.argmin(np.abs(f - 3.0)))

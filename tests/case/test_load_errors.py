@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from helpers_case import BASE, deep_update, write_case
+from support.cases import BASE, deep_update, write_case
 from nlp.case.assemble import assemble
 from nlp.cli import main
 from nlp.case.load import load_case

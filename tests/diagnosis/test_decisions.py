@@ -1,7 +1,7 @@
 """Decisions under model error, effects inside the model class, agreement between tests.
 
 The data are simulated here, independently of the package: the direct FRF
--w^2 (K - w^2 M + j w C)^-1 b of a shear frame (conftest.shear_K) with 1 %
+-w^2 (K - w^2 M + j w C)^-1 b of a shear frame (support.frames.shear_K) with 1 %
 complex noise, written as an NPZ FRF file next to a case file.
 """
 
@@ -13,7 +13,6 @@ import pytest
 import yaml
 from scipy.linalg import eigh
 
-from conftest import shear_K
 from nlp.case.load import load_case
 from nlp.case.assemble import assemble
 from nlp.diagnosis.driver import _classify, _decide, _public, _repolish, diagnose
@@ -22,8 +21,10 @@ from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, STRONG_
                                     evidence,
                                     held_out_excess, held_out_ok, scaled_delta_bic, tied)
 from nlp.diagnosis.priors import decompose_damping, story_patterns
-
-F = np.arange(0.5, 16.0, 0.02)
+from support.diagnosis import F
+from support.diagnosis import baseline as _baseline, frame as _frame, frf_case as _case
+from support.diagnosis import write_frf as _write
+from support.frames import shear_K
 
 
 def _accelerance(M, C, K, floor, rng, noise=0.01):
@@ -36,36 +37,6 @@ def _accelerance(M, C, K, floor, rng, noise=0.01):
         w = 2 * np.pi * f
         H[:, k] = -w**2 * np.linalg.solve(K - w**2 * M + 1j * w * C, b)
     return H * (1 + noise * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)))
-
-
-def _case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
-    """Write case.yaml for the FRF files [(name, force floor)] (first is the update)."""
-    data = {"file": files[0][0],
-            "channels": [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance",
-                          "column": i} for i in range(channels)]}
-    if len(files) > 1:
-        data["validation_file"] = files[1][0]
-        data["validation_force_floor"] = files[1][1]
-    case = {"name": "t", "model": {"type": "shear_frame", "masses": [float(x) for x in m_nom],
-                                  "stiffnesses": [float(x) for x in k_nom]},
-            "parameters": parameters, "damping": damping,
-            "excitation": {"type": "force", "floor": files[0][1]}, "data": data,
-            "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.5, "fmax": 15.0},
-            "search": {"starts": 8, "seed": 0, "workers": 1}}
-    (folder / "case.yaml").write_text(yaml.safe_dump(case, sort_keys=False))
-    return load_case(str(folder / "case.yaml"))
-
-
-def _write(folder, name, H):
-    np.savez(folder / name, f=F, H=H)
-
-
-def _frame(m, k, zeta=0.015):
-    M, K = np.diag(m), shear_K(k)
-    w = np.sqrt(eigh(K, M, eigvals_only=True))
-    a1 = 2 * zeta / (w[0] + w[-1])
-    a0 = a1 * w[0] * w[-1]
-    return M, a0 * M + a1 * K, K
 
 
 @pytest.mark.slow  # a whole diagnosis: 20-40 s on 2 cores
@@ -794,18 +765,6 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
         for n, v in f["parameters"].items():
             assert abs(v - g["parameters"][n]) <= 3 * math.hypot(f["uncertainty"][n],
                                                                   g["uncertainty"][n])
-
-
-def _baseline(cfg, starts=6):
-    """The case's own general-C fit on its half-power windows (a short scatter search)."""
-    from nlp.diagnosis.fitting import _search
-    from nlp.solve.search import SearchConfig
-    case = assemble(cfg)
-    fit = _windows(cfg, case, 1)
-    target = _target(case, fit, noise_sigma(case, fit))
-    pr = _problem(case, target)
-    res, _ = _search(pr, SearchConfig(starts=starts, seed=0, workers=1))
-    return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}
 
 
 @pytest.mark.slow  # a general-C baseline and one structured refit: ~20 s

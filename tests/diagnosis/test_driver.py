@@ -1,6 +1,6 @@
 """Missing physics on small synthetic cases: one per family, a null and an ordinary change.
 
-The cases come from scripts/make_benchmark.py (3 storeys, 600-s records, H1 FRFs);
+The cases come from nlp/testing/benchmark.py (3 storeys, 600-s records, H1 FRFs);
 the diagnosis reads only case.yaml and the records; truth is in this file.
 """
 
@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from make_benchmark import make_case
+from nlp.testing.benchmark import make_case
 from nlp.case.load import load_case
 from nlp.diagnosis.driver import diagnose
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from conftest import frame_parameter_set, shear_K
+from support.frames import frame_parameter_set, shear_K
 from nlp.model.damping import GeneralDamping
 from nlp.model.nominal import shear_frame
 from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,

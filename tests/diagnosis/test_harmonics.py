@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.signal import chirp
 
-from conftest import shear_K
+from support.frames import shear_K
 from nlp.diagnosis.harmonics import force_frfs, harmonic_location, story_vectors
 from nlp.diagnosis.priors import story_patterns
 from nlp.solve.problem import Channel

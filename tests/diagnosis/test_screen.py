@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import shear_K
+from support.frames import shear_K
+from support.paths import CASES
 from nlp.case.assemble import assemble
 from nlp.cli import main
 from nlp.case.load import load_case
 from nlp.diagnosis.screen import screen
 
-ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
-CRISTALLO = os.path.join(ROOT, "cases", "cristallo_three_storey")
+CRISTALLO = os.path.join(CASES, "cristallo_three_storey")
 
 # the "real" frame of the synthetic tests; the case's nominal model is 20 % off
 MASSES = np.array([5.0, 4.6, 4.8, 4.2])

@@ -1,7 +1,7 @@
 """Noise model per FRF route: null cases (physics inside the model class) fit to
 a reduced chi-square near 1 on every route.
 
-Records and FRFs are simulated here by scripts/noise_sim.py (scipy lsim of a
+Records and FRFs are simulated here by nlp/testing/noise_sim.py (scipy lsim of a
 3-storey frame at 10x the recorded rate, noise on the input and every output),
 independently of the package's FRF and time-stepping code; the package only
 estimates, weighs and fits.
@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-import noise_sim as sf
+from nlp.testing import noise_sim as sf
 from nlp.frf import kernel, noise, scatter, variance
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case

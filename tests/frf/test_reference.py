@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from conftest import random_system
+from support.frames import random_system
 from nlp.frf.reference import (OUTPUTS, frf_dynamic_stiffness, frf_modal, frf_state_space,
                      modal_parameters, complex_modes, state_space_matrices)
 from nlp.frf.backends.dense import frf_symbolic

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from conftest import TABLE1_INITIAL_K, TABLE1_INITIAL_M, shear_K, random_system
+from support.frames import TABLE1_INITIAL_K, TABLE1_INITIAL_M, shear_K, random_system
 from nlp.model.damping import GeneralDamping, ModalDamping, RayleighDamping, rayleigh_from_ratios
 from nlp.frf.reference import modal_parameters
 

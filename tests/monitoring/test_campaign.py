@@ -1,14 +1,13 @@
 """Batch updating and change detection (issue 10, monitoring).
 
 The change detector is checked on series with known steps and known nulls;
-the batch command on records made by scripts/make_monitoring.py, a simulator
-that imports nothing of the package.
+the batch command on records made by nlp.testing.monitoring, a simulator
+that shares no code with the package's FRF code.
 """
 
 import json
 import os
-import subprocess
-import sys
+import re
 
 import numpy as np
 import pytest
@@ -16,8 +15,8 @@ import pytest
 from nlp.monitoring.campaign import find_records, record_time
 from nlp.monitoring.changes import detect_changes
 from nlp.cli import main
-
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+from nlp.testing.monitoring import write_campaign
+from support.paths import CASES
 
 
 def test_no_false_alarm_on_noise_drift_and_daily_cycle():
@@ -79,14 +78,10 @@ def test_find_records_refuses_what_matches_nothing(tmp_path):
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     """30 records from the independent simulator; story 2 loses 8 % at record 20."""
-    import re
-
     case_dir = tmp_path_factory.mktemp("monitoring")
-    subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "make_monitoring.py"),
-                    "--records", "30", "--change", "20", "--out", str(case_dir)],
-                   check=True, capture_output=True)
+    write_campaign(str(case_dir), records=30, change=20)
     truth = json.loads((case_dir / "truth.json").read_text())
-    src = open(os.path.join(ROOT, "cases", "monitoring", "case.yaml")).read()
+    src = open(os.path.join(CASES, "monitoring", "case.yaml")).read()
     first = truth["records"][0]["file"]
     (case_dir / "case.yaml").write_text(re.sub(r"file: records/\S+", f"file: records/{first}", src))
     return case_dir, truth

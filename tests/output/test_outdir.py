@@ -17,12 +17,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.output import outdir
 from nlp.errors import InputError
 from nlp.output.flags import iteration_flag, replay_flags
 from nlp.frf.metrics import correlation
-from test_checks import ROOT, cli, cli_inproc, snapshot
+from nlp.testing.shake_table import make as make_shake_table
+from support.cli import cli, cli_inproc, snapshot
+from support.paths import ROOT
 
 
 def sha(path):
@@ -361,8 +363,7 @@ def test_inverted_sensor_is_flagged_by_the_replay(tmp_path):
     replay anti-correlates with its record, and the run says: likely a sign or unit error."""
     import shutil
     import yaml
-    from make_shake_table import make
-    t, cols, _ = make(seed=5)
+    t, cols, _ = make_shake_table(seed=5)
     cols["acc4"] = -cols["acc4"]
     names = list(cols)
     np.savetxt(tmp_path / "records.csv", np.column_stack([cols[n] for n in names]),

@@ -3,11 +3,13 @@
 import numpy as np
 import pytest
 
-from helpers_case import force_frf, write_case
+from support.cases import force_frf, write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.errors import InputError
 from nlp.solve.identify import jacobian_report, standard_errors
+from nlp.testing.four_story import MASSES, STIFFNESSES, true_damping
+from support.frames import shear_K
 
 
 def test_unanchored_ground_case_is_refused_with_explanation(tmp_path):
@@ -21,9 +23,7 @@ def test_unanchored_ground_case_is_refused_with_explanation(tmp_path):
 def test_null_space_is_real_and_seen_by_the_jacobian(tmp_path):
     """Scaling M, C, K together leaves the FRFs unchanged (independent check),
     and the SVD of the all-free Jacobian shows the direction."""
-    from make_four_story import MASSES, STIFFNESSES, true_damping
     from nlp.frf.reference import frf_dynamic_stiffness
-    from conftest import shear_K
     M, K = np.diag(MASSES), shear_K(STIFFNESSES)
     C = true_damping(M, K)
     w = np.linspace(1, 40, 50)

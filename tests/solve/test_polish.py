@@ -4,6 +4,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from nlp.solve.polish import newton_polish
+from support.cases import write_case
 
 
 def test_projection_with_an_equality_and_an_active_bound():
@@ -105,7 +106,6 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     """A diagnosis refit capped below the case's iteration limit stops unconverged and
     is left so (it is continued when adopted); the same NLP without the cap is finished
     by Newton steps when IPOPT stops at its limit."""
-    from helpers_case import write_case
     from nlp.diagnosis import driver as D
     from nlp.case.assemble import assemble
     from nlp.case.load import load_case

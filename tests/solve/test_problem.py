@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 
-from helpers_case import force_frf, write_case
+from support.cases import force_frf, write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 

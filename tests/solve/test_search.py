@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.solve import search as search_mod
 from nlp.case.assemble import assemble, build_problem
 from nlp.cli import main

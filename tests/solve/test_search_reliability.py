@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.cli import main
 from nlp.case.load import load_case
@@ -19,8 +19,7 @@ from nlp.errors import SearchFailed
 from nlp.solve.executors import Setup
 from nlp.solve.problem import LocalResult, UpdatingProblem
 from nlp.solve.search import SearchConfig, pick_starts, scatter_search
-
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+from support.paths import ROOT
 
 
 def _reference_pick(Z, scores, n, lo, hi, min_distance):

@@ -5,7 +5,7 @@ and against a full-tolerance solve from the same start."""
 import numpy as np
 import pytest
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.solve.stopping import SCREEN_TOL

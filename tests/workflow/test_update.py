@@ -8,10 +8,11 @@ import shutil
 import numpy as np
 import pytest
 
-from make_shake_table import make
+from nlp.testing.shake_table import make
 from nlp.cli import main
+from support.paths import CASES
 
-CASE = os.path.join(os.path.dirname(__file__), "..", "..", "cases", "four_story_shake_table", "case.yaml")
+CASE = os.path.join(CASES, "four_story_shake_table", "case.yaml")
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.model.damping import (DashpotDamping, GeneralDamping, ModalGeneralDamping, RayleighDamping,

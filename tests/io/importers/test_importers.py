@@ -15,6 +15,7 @@ import yaml
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
 from nlp.errors import InputError
+from support.frames import random_system
 
 try:  # openseespy is an optional extra; its wheel needs libblas/liblapack
     import openseespy.opensees  # noqa: F401
@@ -279,7 +280,6 @@ def test_large_model_paths_of_the_numpy_frf_agree_with_the_dense_ones(monkeypatc
     """The per-frequency sparse solve and the Arnoldi modes used above LARGE_N DOFs give the
     dense results (random non-proportionally damped system, threshold lowered)."""
     import nlp.frf.reference as frf
-    from conftest import random_system
     rng = np.random.default_rng(7)
     M, C, K = random_system(40, rng)
     w = np.array([0.5, 2.0, 7.0])

@@ -1,9 +1,9 @@
 """Reduced chi-square of null cases on every FRF route (the noise model's check).
 
-    python scripts/check_noise.py [--seeds 5]
+    python research/check_noise.py [--seeds 5]
 
 Each case is a 3-storey frame whose physics is inside the model class
-(general damping), simulated by scripts/noise_sim.py independently of the
+(general damping), simulated by nlp/testing/noise_sim.py independently of the
 package (scipy lsim at 10x the recorded rate; 2 % noise on the input and every
 output), fitted by the package with residuals weighted by nlp/noise.py. A
 correct noise model gives a reduced chi-square near 1 (0.8-1.3) on each route.
@@ -15,11 +15,11 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 import numpy as np  # noqa: E402
 
-import noise_sim as sf  # noqa: E402
+from nlp.testing import noise_sim as sf  # noqa: E402
 
 
 def main(argv=None):

@@ -4,9 +4,14 @@ Written apart from the package's FRF code on purpose: the cases' data must not
 come from the code they test. H_k = (jw)^p [(K - w^2 M + jwC)^-1 b]_rows.
 """
 
+import argparse
+import json
+import os
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+import yaml
 
 __all__ = ["frf_sparse", "add_noise", "generator_args", "write_case"]
 
@@ -31,7 +36,6 @@ def add_noise(H, noise, rng):
 
 def generator_args(doc, default_out):
     """--seed, --noise, --out of a case generator."""
-    import argparse
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--noise", type=float, default=0.02)
@@ -41,9 +45,6 @@ def generator_args(doc, default_out):
 
 def write_case(out, f, H, truth, case):
     """frf.npz (f [Hz], H), truth.json and case.yaml in out."""
-    import json
-    import os
-    import yaml
     os.makedirs(out, exist_ok=True)
     np.savez_compressed(os.path.join(out, "frf.npz"), f=f, H=H)
     with open(os.path.join(out, "truth.json"), "w") as fh:

@@ -1,11 +1,12 @@
-"""Write small case folders for tests (YAML + NPZ), from the truth of scripts/make_four_story."""
+"""Write small case folders for tests (YAML + NPZ), from the truth of nlp.testing.four_story."""
 
 import os
 
 import numpy as np
 import yaml
 
-from make_four_story import make
+from nlp.testing.four_story import MASSES, STIFFNESSES, make, true_damping
+from nlp.testing.frames import shear_K
 
 BASE = {
     "name": "test_case",
@@ -36,8 +37,6 @@ def deep_update(d, u):
 
 def force_frf(output, f=None):
     """Truth-model FRFs of all floors to a force at floor 1 (independent numpy solve)."""
-    from make_four_story import MASSES, STIFFNESSES, true_damping
-    from conftest import shear_K
     f = np.arange(0.02, 8, 0.02) if f is None else f
     M, K = np.diag(MASSES), shear_K(STIFFNESSES)
     C = true_damping(M, K)

@@ -7,7 +7,7 @@ and score per floor, then refits the appendage at FLOOR from the scan's frequenc
 each frequency given, with chi-square, held-out chi-square, values and quasi-likelihood
 standard errors (the numbers `diagnose` judges).
 
-    python scripts/probe_appendage.py CASE.yaml FLOOR [F_HZ ...]
+    python research/probe_appendage.py CASE.yaml FLOOR [F_HZ ...]
 """
 
 import argparse

@@ -2,8 +2,8 @@
 
 How far a right noise model would put such a file from 1.
 
-    python scripts/frf_file_coherence_control.py --out /tmp/ctl SEED [SEED ...]
-    python scripts/frf_file_coherence_control.py --out /tmp/ctl --lead SEED ...
+    python research/frf_file_coherence_control.py --out /tmp/ctl SEED [SEED ...]
+    python research/frf_file_coherence_control.py --out /tmp/ctl --lead SEED ...
 
 For each seed, case 62 of ``scripts/make_blind_benchmark.py`` (a null FRF file without
 coherence) is written twice from the same records: as the generator writes it, and with its
@@ -33,9 +33,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
-sys.path.insert(0, HERE)
 
-import make_blind_benchmark as gen  # noqa: E402
+from nlp.testing.blind import cases as gen  # noqa: E402
 from nlp.frf import noise as N  # noqa: E402
 from nlp.case.assemble import assemble  # noqa: E402
 from nlp.case.load import load_case  # noqa: E402

@@ -8,7 +8,7 @@ FRF code); the residual scatter at the truth is the noise. Prints the Gauss-Newt
 standard error of each multiplier 1 + alpha_r: a case recovers its groups within
 2 % only when these are well below 2 %.
 
-    python scripts/check_identifiability.py cases/frame3d_2100/case.yaml
+    python research/check_identifiability.py cases/frame3d_2100/case.yaml
 """
 
 import json

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from helpers_case import write_case
+from support.cases import write_case
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
 from nlp.frf.reference import modal_parameters

@@ -1,7 +1,7 @@
 """Replay the damper rule on stored diagnoses of blind benchmarks, at several thresholds
 of the excess's standard errors (priors.DAMPER_SE).
 
-    python scripts/replay_damper_rule.py BENCH [BENCH ...] [--se 6 5 4 3] [--zeta 1.85 1.5 1.2]
+    python research/replay_damper_rule.py BENCH [BENCH ...] [--se 6 5 4 3] [--zeta 1.85 1.5 1.2]
 
 Reads BENCH/*/diagnosis/diagnosis.json (its damping_decomposition) and truth.json. The
 rule is that of priors.damper_check: the decomposition is judged (structured refit fits,

@@ -1,6 +1,6 @@
 """The noise model against the true FRF: mean z^2 of a blind benchmark's measured FRFs.
 
-    python scripts/noise_against_truth.py --bench BENCH [--kinds null,ordinary]
+    python research/noise_against_truth.py --bench BENCH [--kinds null,ordinary]
 
 A baseline fit's reduced chi-square mixes two things: whether the noise model's
 sigma is right, and how much of the noise the fitted parameters absorb. Here

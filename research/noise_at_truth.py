@@ -31,7 +31,7 @@ fitted points where that bias exceeds 0.05: the slope of the actual error on the
 the median ratio of the model's bias formula to the exact one, and (with coherence) mean and
 median z^2 of the coherence variance alone, against the truth and against the smoothed truth.
 
-    python scripts/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...] [--split]
+    python research/noise_at_truth.py BENCH/62_null_frf [BENCH/51_null ...] [--split]
 """
 
 import argparse

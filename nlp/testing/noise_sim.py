@@ -1,29 +1,26 @@
 """An independent simulator of small shear frames for the noise-model tests and
-scripts/check_noise.py.
+research/check_noise.py.
 
-Written without the package: the frame's state-space model is integrated by
-scipy.signal.lsim at a fine step (10x the recorded rate, linear interpolation
-of the input), then sampled; white noise is added to every channel, the input
-included. FRFs for FRF files come from a direct solve of the dynamic stiffness.
+The data are simulated without the package: the frame's state-space model is
+integrated by scipy.signal.lsim at a fine step (10x the recorded rate, linear
+interpolation of the input), then sampled; white noise is added to every channel,
+the input included. FRFs for FRF files come from a direct solve of the dynamic
+stiffness. Only `reduced_chi2`, the check itself, fits a case with the package.
 """
 
 import math
 import os
+from dataclasses import replace
 
 import numpy as np
+import yaml
 from scipy import signal
 
-
-def shear_K(k):
-    """Shear-frame stiffness (story i joins floor i-1 and floor i; 0 is the ground)."""
-    n = len(k)
-    K = np.zeros((n, n))
-    for i in range(n):
-        K[i, i] += k[i]
-        if i + 1 < n:
-            K[i, i] += k[i + 1]
-            K[i, i + 1] = K[i + 1, i] = -k[i + 1]
-    return K
+from nlp.case.assemble import assemble, build_problem
+from nlp.case.load import load_case
+from nlp.frf import noise
+from nlp.solve.search import SearchConfig, scatter_search
+from nlp.testing.frames import shear_K
 
 MASSES = np.array([5.0, 4.5, 4.0])
 STIFF = np.array([4000.0, 3200.0, 2600.0])
@@ -44,6 +41,7 @@ def damping(M, K, zeta=0.02):
 
 
 def frame(masses=MASSES, stiff=STIFF):
+    """M, C, K of the 3-storey null frame (masses [kg], story stiffnesses [N/m])."""
     M = np.diag(masses)
     K = shear_K(stiff)
     return M, damping(M, K), K
@@ -120,8 +118,6 @@ ROUTES = ("transient", "welch", "frf_scatter", "frf_coherence", "frf_welch", "fr
 
 def case_yaml(folder, data, frequencies=None):
     """A shear-frame case whose nominal values are 8-15 % off the truth; m1 weighed."""
-    import yaml
-
     case = {"name": "null", "model": {"type": "shear_frame", "masses": [5.0, 5.0, 4.5],
                                       "stiffnesses": [3500.0, 3600.0, 2300.0]},
             "parameters": {"fixed": {"m1": float(MASSES[0])}},
@@ -134,7 +130,8 @@ def case_yaml(folder, data, frequencies=None):
     return path
 
 
-def _records(folder, x, y, extra, frequencies=None):
+def records_case(folder, x, y, extra, frequencies=None):
+    """Write the records rec.csv (input ag, channels a1-a3) and their case file; returns its path."""
     names = ["a1", "a2", "a3"]
     write_records(os.path.join(str(folder), "rec.csv"), FS_FINE / DECIM, x, y, names)
     data = {"type": "time_histories", "file": "rec.csv",
@@ -181,7 +178,7 @@ def null_case(route, folder, seed, frequencies=None):
         u = chirp_input(FS_FINE, 0.5, 20.0, 60, 5, 20) if route == "transient" else \
             random_input(FS_FINE, 20.0, 300, rng)
         x, y = add_noise(*simulate(u, FS_FINE, M, C, K, decim=DECIM), 0.02, rng)
-        return _records(folder, x, y, {"nperseg": "all" if route == "transient" else 4096},
+        return records_case(folder, x, y, {"nperseg": "all" if route == "transient" else 4096},
                         frequencies)
     f = np.arange(0.5, 12.0, 0.01)
     H = frf_exact(M, C, K, f)
@@ -212,13 +209,6 @@ def null_case(route, folder, seed, frequencies=None):
 def reduced_chi2(path, starts=8):
     """Baseline fit weighted by the package's noise model: chi-square / degrees of
     freedom, the noise model and the case."""
-    from dataclasses import replace
-
-    from nlp.frf import noise
-    from nlp.case.assemble import assemble, build_problem
-    from nlp.case.load import load_case
-    from nlp.solve.search import SearchConfig, scatter_search
-
     case = assemble(load_case(path))
     sig = noise.sigma_ln(case, case.selected)
     case = replace(case, target=replace(case.target, weight=1.0 / sig))

@@ -1,9 +1,10 @@
-"""The effective number of independent points of scripts/noise_at_truth.py against known
-correlation structures, and the spread of a mean square it implies against simulation."""
+"""The effective number of independent points (nlp.diagnosis.spread.effective_points) on a
+frequency grid against known correlation structures, and the spread of a mean square it
+implies against simulation."""
 
 import numpy as np
 
-from noise_at_truth import effective_points
+from nlp.diagnosis.spread import effective_points
 
 
 def test_independent_errors_count_every_point():

@@ -4,7 +4,7 @@ Draws real structures as the blind generator does (scripts/make_blind_benchmark.
 Rayleigh damping plus 40 % of C as story dashpots of random Dirichlet shares), with and
 without a local damper of size 1, 2, 4 (c / (2 zeta sqrt(k m)) of its story), and prints,
 on the true matrices (no estimation error), how often each rule flags the right story
-(null draws: any story). Run: python scripts/damper_threshold.py [--draws N] [--seed S]
+(null draws: any story). Run: python research/damper_threshold.py [--draws N] [--seed S]
 """
 
 import argparse
@@ -13,10 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import make_blind_benchmark as mb  # noqa: E402
+from nlp.testing.blind import structures as mb  # noqa: E402
 from nlp.diagnosis.priors import (DAMPER_RATIO, STORY_ZETA, _excess, modal_share,  # noqa: E402
                                   story_damping_ratio)
 

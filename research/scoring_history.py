@@ -7,7 +7,7 @@ cases not ``adequate``), the median held-out ratio where the right physics was a
 per FRF route the range of the baseline reduced chi-square of the null and ordinary cases,
 starred where a case falls outside 0.8-1.3. A pooled line closes the table.
 
-    python scripts/scoring_history.py [--from SEED]
+    python research/scoring_history.py [--from SEED]
 """
 
 import argparse
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from score_blind import SIZE_DETECTABLE
+from nlp.testing.blind.structures import SIZE_DETECTABLE
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUTES = ("one_segment", "welch", "frf_file")

@@ -9,7 +9,7 @@ how many of those SDs it lies from 1, and the strongest appendage candidate's sc
 found in the log (the margin of ``evidence.STRONG_BIC``). Per route: cases inside 0.8-1.3 and
 within 2 SDs of 1.
 
-    python scripts/null_reruns.py --out DIR [--run] BENCH/5[1-9]_* BENCH/6[0-2]_* ...
+    python research/null_reruns.py --out DIR [--run] BENCH/5[1-9]_* BENCH/6[0-2]_* ...
 """
 
 import argparse

@@ -1,6 +1,6 @@
 """How the scatter level of an FRF file without coherence compares with its coherence, at the truth.
 
-For each seed's pair of null files written by ``scripts/frf_file_coherence_control.py``
+For each seed's pair of null files written by ``research/frf_file_coherence_control.py``
 (``DIR/SEED/62_null_frf`` and ``DIR/SEED/coherent``: the same H, with and without the stored
 coherence), the mean of z^2 = ln|H / H_t|^2 / sigma^2 over the points that ``diagnose`` fits
 is printed with sigma from:
@@ -17,12 +17,12 @@ is printed with sigma from:
   squared resolution bias over (k x the package's level)^2, k = 2 and 4), so that the
   structure's peaks do not count as scatter.
 
-H_t is the true FRF (``truth.json``, computed in ``scripts/noise_at_truth.py`` independently of
+H_t is the true FRF (``truth.json``, computed in ``research/noise_at_truth.py`` independently of
 the package's FRF code) through the Hann window's three taps, as the fit sees it. A column's
 per-file values spread by sampling as well as by the level; the last lines give each column's
 mean, SD, files outside 0.8-1.3, and the SD of ln(column / coherence): the level's own error.
 
-    python scripts/frf_file_scatter_variants.py --dir DIR [SEED ...]   (default: every seed in DIR)
+    python research/frf_file_scatter_variants.py --dir DIR [SEED ...]   (default: every seed in DIR)
 """
 
 import argparse

@@ -1,8 +1,8 @@
 """Sampling spread of a Welch case's mean z^2 at the true structure.
 
-    python scripts/welch_spread.py [--seeds 12] [--seconds 400] [--zeta 0.015]
+    python research/welch_spread.py [--seeds 12] [--seconds 400] [--zeta 0.015]
 
-The 3-storey frame of scripts/noise_sim.py (scipy lsim, independent of the package;
+The 3-storey frame of nlp/testing/noise_sim.py (scipy lsim, independent of the package;
 Rayleigh damping at zeta, 2 % noise on the input and every output) is driven by
 band-limited random input and recorded at 100 Hz; the package estimates H1 by Welch
 (Hann, 4096 samples, half overlap) and its noise model. Printed per seed: the mean
@@ -18,10 +18,9 @@ import tempfile
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-import noise_sim as ns  # noqa: E402
+from nlp.testing import noise_sim as ns  # noqa: E402
 from nlp.case.assemble import assemble  # noqa: E402
 from nlp.case.load import load_case  # noqa: E402
 
@@ -36,7 +35,7 @@ def mean_z2(seed, seconds, zeta):
     u = ns.random_input(ns.FS_FINE, 20.0, seconds, rng)
     x, y = ns.add_noise(*ns.simulate(u, ns.FS_FINE, M, C, K, decim=ns.DECIM), 0.02, rng)
     with tempfile.TemporaryDirectory() as d:
-        case = assemble(load_case(ns._records(d, x, y, {"nperseg": 4096})))
+        case = assemble(load_case(ns.records_case(d, x, y, {"nperseg": 4096})))
     h, a = case.target.kernel
     f, dh = case.f, h / (2 * np.pi)
     Hk = (a * ns.frf_exact(M, C, K, f - dh) + (1 - 2 * a) * ns.frf_exact(M, C, K, f)

@@ -1,13 +1,13 @@
 """A lead, not in the package: the noise of an FRF file without coherence from a local
 rational fit, against the scatter of third differences that the package uses.
 
-    python scripts/frf_file_noise_lead.py CASEDIR [CASEDIR ...]   # blind FRF files
-    python scripts/frf_file_noise_lead.py --sim                    # scipy single-mode files
-    python scripts/frf_file_noise_lead.py --known                  # independent errors
-    python scripts/frf_file_noise_lead.py --coherence CASEDIR ...  # leakage in stored coherence
+    python research/frf_file_noise_lead.py CASEDIR [CASEDIR ...]   # blind FRF files
+    python research/frf_file_noise_lead.py --sim                    # scipy single-mode files
+    python research/frf_file_noise_lead.py --known                  # independent errors
+    python research/frf_file_noise_lead.py --coherence CASEDIR ...  # leakage in stored coherence
 
 For each blind null FRF file (truth.json beside case.yaml) it compares ln|H| with the
-truth seen through the Hann power kernel (scripts/noise_at_truth.py) at the fitted
+truth seen through the Hann power kernel (research/noise_at_truth.py) at the fitted
 points, over two sigmas: the package's (nlp.frf.noise.noise_model) and the local rational
 one below plus LEAKAGE share 0.1 of the squared resolution bias. It prints each file's
 mean z^2, then the pooled median and tails, which for a right sigma are those of
@@ -122,7 +122,7 @@ def blind(folders):
 
 def sim():
     from scipy import signal
-    sys.path.insert(0, os.path.join(HERE, "..", "tests"))
+    sys.path.insert(0, os.path.join(HERE, "..", "tests", "frf"))
     from test_noise import _welch_file_of_a_sharp_mode
     fs, fn = 50.0, 5.0
     for zeta in (0.01, 0.02):

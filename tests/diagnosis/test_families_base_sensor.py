@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import frame_parameter_set, shear_K
+from support.frames import frame_parameter_set, shear_K
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
 from nlp.errors import InputError

@@ -7,7 +7,7 @@ standard error, the scaled BIC change, the fraction of the phase chi-square it
 explains and its phase at the top of the band (*** = significant), then the
 findings next to the truth.
 
-    python scripts/phase_delays_blind.py BENCH/36_sensor_delay BENCH/51_null ...
+    python research/phase_delays_blind.py BENCH/36_sensor_delay BENCH/51_null ...
 """
 
 import json

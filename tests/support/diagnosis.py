@@ -1,0 +1,56 @@
+"""Small shear frames with FRF files for the diagnosis tests: the frequency grid, the
+frame (Rayleigh damping), the case file over FRF files, and the baseline fit."""
+
+import numpy as np
+import yaml
+from scipy.linalg import eigh
+
+from nlp.case.assemble import assemble
+from nlp.case.load import load_case
+from nlp.diagnosis.fitting import _problem, _search, _target, _windows, noise_sigma
+from nlp.solve.search import SearchConfig
+from nlp.testing.frames import shear_K
+
+F = np.arange(0.5, 16.0, 0.02)     # the FRF files' frequencies [Hz]
+
+
+def frf_case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
+    """Write case.yaml for the FRF files [(name, force floor)] (first is the update)."""
+    data = {"file": files[0][0],
+            "channels": [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance",
+                          "column": i} for i in range(channels)]}
+    if len(files) > 1:
+        data["validation_file"] = files[1][0]
+        data["validation_force_floor"] = files[1][1]
+    case = {"name": "t", "model": {"type": "shear_frame", "masses": [float(x) for x in m_nom],
+                                  "stiffnesses": [float(x) for x in k_nom]},
+            "parameters": parameters, "damping": damping,
+            "excitation": {"type": "force", "floor": files[0][1]}, "data": data,
+            "frequencies": {"method": "half_power", "k": 2.0, "fmin": 0.5, "fmax": 15.0},
+            "search": {"starts": 8, "seed": 0, "workers": 1}}
+    (folder / "case.yaml").write_text(yaml.safe_dump(case, sort_keys=False))
+    return load_case(str(folder / "case.yaml"))
+
+
+def write_frf(folder, name, H):
+    """FRF file `name` in folder: H (n_ch, len(F)) on the grid F."""
+    np.savez(folder / name, f=F, H=H)
+
+
+def frame(m, k, zeta=0.015):
+    """M, C, K of a shear frame with Rayleigh damping of ratio zeta at modes 1 and n."""
+    M, K = np.diag(m), shear_K(k)
+    w = np.sqrt(eigh(K, M, eigvals_only=True))
+    a1 = 2 * zeta / (w[0] + w[-1])
+    a0 = a1 * w[0] * w[-1]
+    return M, a0 * M + a1 * K, K
+
+
+def baseline(cfg, starts=6):
+    """The case's own general-C fit on its half-power windows (a short scatter search)."""
+    case = assemble(cfg)
+    fit = _windows(cfg, case, 1)
+    target = _target(case, fit, noise_sigma(case, fit))
+    pr = _problem(case, target)
+    res, _ = _search(pr, SearchConfig(starts=starts, seed=0, workers=1))
+    return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}
