@@ -39,6 +39,7 @@ from nlp.case.load import load_case
 from nlp.frf.reference import channel_frfs
 from nlp.solve.problem import LocalResult
 from nlp.solve.search import SearchConfig, scatter_search
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_CASE = os.path.join(HERE, "..", "cases", "four_story_shear_frame", "case.yaml")
@@ -218,4 +219,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -15,6 +15,7 @@ import time
 from nlp.case.load import load_case
 from nlp.diagnosis.driver import diagnose
 from nlp.testing.benchmark import make_case
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def main():
@@ -42,4 +43,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

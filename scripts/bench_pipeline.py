@@ -19,6 +19,7 @@ from nlp.output.report import write_report
 from nlp.solve.search import SearchConfig, scatter_search
 from nlp.workflow.verify import replay
 from nlp.workflow.update import run
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -61,4 +62,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

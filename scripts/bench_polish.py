@@ -17,6 +17,7 @@ from nlp.diagnosis import driver as dg
 from nlp.solve import problem as pm
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def run(label, case, target, solves):
@@ -52,4 +53,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

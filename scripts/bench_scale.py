@@ -29,7 +29,6 @@ FRF error are printed under its row, and its parameter error is the re-centred o
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: one BLAS thread per process
 
 import argparse  # noqa: E402
 import json  # noqa: E402
@@ -49,6 +48,7 @@ from nlp.case.assemble import assemble, build_problem  # noqa: E402
 from nlp.case.load import load_case  # noqa: E402
 from nlp.solve.continuation import band_continuation  # noqa: E402
 from nlp.workflow.recentre import recentre  # noqa: E402
+from nlp.solve.executors.threads import limit_blas_threads
 
 SIZES = (4, 8, 16, 32, 64, 128, 256, 512, 1000, 2000)
 GROUPS = 8
@@ -234,4 +234,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -28,6 +28,7 @@ from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.solve.executors import Setup, make_executor
 from nlp.solve.search import SearchConfig, pick_starts, scatter_search
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -137,4 +138,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -19,6 +19,7 @@ import os
 import numpy as np
 
 from nlp.testing.benchmark import make_case, specs
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def main():
@@ -35,4 +36,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

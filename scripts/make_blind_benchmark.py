@@ -17,6 +17,7 @@ import os
 import numpy as np
 
 from nlp.testing.blind.cases import case_name, check_case, make_case, specs
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def _selection(text, n):
@@ -60,4 +61,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

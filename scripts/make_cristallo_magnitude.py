@@ -10,6 +10,7 @@ import os
 import numpy as np
 
 from nlp.io.readers import read_frf
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SRC = os.path.join(HERE, "..", "cases", "cristallo_three_storey", "Experimental.csv")
@@ -32,4 +33,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

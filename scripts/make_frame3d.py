@@ -26,6 +26,7 @@ import scipy.sparse as sp
 
 from nlp.io.importers.opensees import assemble_script
 from nlp.testing.sparse_sim import add_noise, frf_sparse, generator_args, write_case
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "frame3d_2100")
@@ -130,4 +131,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -23,6 +23,7 @@ import argparse
 import os
 
 from nlp.testing.monitoring import write_campaign
+from nlp.solve.executors.threads import limit_blas_threads
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 CASE = os.path.join(HERE, "..", "cases", "monitoring")
@@ -43,4 +44,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -19,6 +19,7 @@ import os
 import numpy as np
 
 from nlp.testing.shake_table import FS, make
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def main():
@@ -39,4 +40,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     main()

@@ -18,6 +18,7 @@ import numpy as np
 
 from nlp.case.load import load_case
 from nlp.diagnosis.driver import diagnose
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def _same_location(a, b):
@@ -83,4 +84,5 @@ def _table(rows):
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     sys.exit(main())

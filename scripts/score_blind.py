@@ -37,6 +37,7 @@ from collections import defaultdict
 import numpy as np
 
 from nlp.testing.blind.structures import SIZE_DETECTABLE, SIZES
+from nlp.solve.executors.threads import limit_blas_threads
 
 
 def _same_location(a, b):
@@ -209,4 +210,5 @@ def main():
 
 
 if __name__ == "__main__":
+    limit_blas_threads()  # as the frf-nlp command does (nlp/solve/executors/threads.py)
     sys.exit(main())
