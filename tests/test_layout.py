@@ -189,3 +189,22 @@ def test_the_api_runs_blas_on_one_thread_unless_the_user_chose():
     got = subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT, env=env,
                          capture_output=True, text=True).stdout.split()
     assert got == ["2"]
+
+
+MODULE_LINES, FUNCTION_LINES = 500, 80
+# Longer pieces that read better whole, each with its reason (docs/architecture.md).
+LONG = {}
+
+
+def test_modules_and_functions_stay_small():
+    long = []
+    for mod, path in MODS.items():
+        text = path.read_text()
+        if text.count("\n") > MODULE_LINES and mod not in LONG:
+            long.append(f"{mod}: {text.count(chr(10))} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > FUNCTION_LINES and f"{mod}.{node.name}" not in LONG:
+                    long.append(f"{mod}.{node.name}: {n} lines")
+    assert long == []
