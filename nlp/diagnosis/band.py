@@ -9,6 +9,7 @@ them.
 """
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import find_peaks
 
 __all__ = ["band_mask", "local_sigma", "band_map", "extra_modes", "hot_spots"]
@@ -34,7 +35,6 @@ def local_sigma(L, half=32, d2_factor=6.0):
     be a 3.2-sigma one. The moving median ignores a narrow resonance, whose second
     differences are large only over a few points.
     """
-    from scipy.ndimage import median_filter
     d2 = np.abs(np.diff(L, 2, axis=1))
     d2 = np.pad(d2, ((0, 0), (1, 1)), mode="edge")
     med = median_filter(d2, size=(1, 2 * half + 1), mode="nearest")

@@ -11,8 +11,6 @@ phi x BIC_TIE.
 
 import math
 
-import numpy as np
-
 from nlp.solve.identify import gauss_newton_covariance
 
 __all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "HELD_OUT_FLOOR", "STRONG_BIC", "held_out_ok", "SIGNIFICANCE", "AGREE", "NUISANCE",

@@ -13,10 +13,13 @@ The same CasADi FRF and NLP (:mod:`nlp.solve.problem`) then fit them. Floors are
 numbered 1..n from the ground up in names and locations; 0 is the ground.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import casadi as ca
+import numpy as np
+
+from nlp.model.parameters import Parameter
 
 __all__ = ["FAMILIES", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
            "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay"]
@@ -298,10 +301,6 @@ def extend_parameters(params, enrichments, ref, values=None):
     values : optional start values, one list per enrichment (default: the
     family's initial guess).
     """
-    from dataclasses import replace
-
-    from nlp.model.parameters import Parameter
-
     extra = []
     for k, e in enumerate(enrichments):
         sp = e.spec(ref)
@@ -314,8 +313,6 @@ def extend_parameters(params, enrichments, ref, values=None):
 
 def references(model, damping_C0):
     """Reference magnitudes the families scale by: mean floor mass, story stiffness, damping."""
-    import numpy as np
-
     return {"m_ref": float(np.mean(np.diag(model.M0))),
             "k_ref": float(np.mean(model.alpha_nominal)) if np.all(model.alpha_nominal != 1.0)
             else float(np.mean(np.diag(model.K0))),

@@ -23,6 +23,7 @@ import math
 import re
 
 import numpy as np
+from scipy.linalg import eigh
 from scipy.optimize import nnls
 
 __all__ = ["PRIOR_OUT", "DAMPER_RATIO", "STORY_ZETA", "DAMPER_SE", "prior_sigmas", "prior_check",
@@ -136,7 +137,7 @@ def story_stiffness(K):
     return k
 
 
-def _excess(C, M, K, leave_out=None):
+def damping_excess(C, M, K, leave_out=None):
     """Each story's dashpot beyond the proportional share of the other stories (the
     median of their c / k, without the stories of the boolean mask ``leave_out`` while
     any other remains)."""
@@ -171,7 +172,7 @@ def damper_check(problem, z, cov_z):
     # errors"); a damper away from it stands (retired 501037/19: story 3 at 9.7x the others
     # and 10.6 standard errors, true 28.6 N s/m, fitted 34.0, while story 1 was pinned)
     pinned = c <= 1e-9 * max(float(np.max(c)), 1e-300)
-    ex, rho, ref, _ = _excess(C, M, K, pinned)
+    ex, rho, ref, _ = damping_excess(C, M, K, pinned)
     lo, hi = problem.bounds
     G = np.zeros((n, z.size))
     for j in range(z.size):
@@ -181,8 +182,8 @@ def damper_check(problem, z, cov_z):
         zm[j] = max(z[j] - h, lo[j]) if np.isfinite(lo[j]) else z[j] - h
         if zp[j] == zm[j]:
             continue
-        G[:, j] = (_excess(*_mck(problem, zp), pinned)[0]
-                   - _excess(*_mck(problem, zm), pinned)[0]) / (zp[j] - zm[j])
+        G[:, j] = (damping_excess(*_mck(problem, zp), pinned)[0]
+                   - damping_excess(*_mck(problem, zm), pinned)[0]) / (zp[j] - zm[j])
     se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", G, cov_z, G), 0, None))
     info = {"a0": a0, "story_dashpots": c.tolist(), "story_ratio_c_over_k": rho.tolist(),
             "unexplained_fraction": left}
@@ -222,7 +223,6 @@ def modal_share(M, K, C, excess):
     A story dashpot that supplies more than half of a mode's damping dominates it;
     damping that is merely non-proportional spreads over the stories.
     """
-    from scipy.linalg import eigh
     _, phi = eigh(K, M)
     drift = np.diff(np.vstack([np.zeros((1, phi.shape[1])), phi]), axis=0)  # story drifts
     total = np.einsum("ir,ij,jr->r", phi, 0.5 * (C + C.T), phi)
@@ -242,7 +242,6 @@ def story_damping_ratio(M, K, C, excess, removed=None):
 
     Returns ((n,) ratios [-], (n,) median modal damping ratios of each C' [-]).
     """
-    from scipy.linalg import eigh
     w2, phi = eigh(K, M)
     excess = np.asarray(excess, float)
     removed = excess if removed is None else np.asarray(removed, float)

@@ -8,7 +8,7 @@ non-proportional viscous C, 1 % complex noise, written as an FRF file.
 import numpy as np
 import pytest
 
-from nlp.diagnosis.driver import _loss_check
+from nlp.diagnosis.checks import loss_check
 from nlp.diagnosis.evidence import BIC_TIE
 from nlp.diagnosis.loss import loss_decision, loss_row
 from nlp.diagnosis.priors import story_patterns
@@ -74,7 +74,7 @@ def test_loss_found_with_its_value_and_none_in_viscous_damping(tmp_path):
         cfg = _case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                     {"model": "general", "zeta": 0.01}, channels=4)
         case, state = _baseline(cfg)
-        out[eta] = _loss_check(case, state, [], lambda s: None)
+        out[eta] = loss_check(case, state, [], lambda s: None)
     found = out[0.03]["findings"]
     assert len(found) == 1 and found[0]["location"] == {}, out[0.03]["rows"]
     v, se = found[0]["parameters"]["eta"], found[0]["uncertainty"]["eta"]
@@ -100,5 +100,5 @@ def test_window_smoothing_of_an_frf_file_is_not_a_loss(tmp_path):
     cfg = _case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.01}, channels=4)
     case, state = _baseline(cfg)
-    out = _loss_check(case, state, [], lambda s: None)
+    out = loss_check(case, state, [], lambda s: None)
     assert out["converged"] and out["findings"] == [], out["rows"]

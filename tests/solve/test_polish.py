@@ -105,7 +105,7 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     is left so (it is continued when adopted); the same NLP without the cap is finished
     by Newton steps when IPOPT stops at its limit."""
     from helpers_case import write_case
-    from nlp.diagnosis import driver as D
+    from nlp.diagnosis.fitting import build_problem
     from nlp.case.assemble import assemble
     from nlp.case.load import load_case
     from nlp.solve.problem import UpdatingProblem
@@ -120,7 +120,7 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
         return real(self, *a)
 
     monkeypatch.setattr(UpdatingProblem, "_polish", counted)
-    capped = D._problem(case, case.target, compile=False, max_iter=2)
+    capped = build_problem(case, case.target, compile=False, max_iter=2)
     res = capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert not capped.polish_unconverged and calls == []
     assert res.status == "Maximum_Iterations_Exceeded" and not res.success
