@@ -172,9 +172,9 @@ def hot_spots(f, r, mask, exclude=(), z2=HOT_Z2, n_max=2, separation=0.2, smooth
     point, averaged over ``smooth`` points, is read at its largest values off the
     fitted points, at most ``n_max`` of them, ``separation`` (relative) apart, each above
     ``z2``. An effect between the resonances (an appendage tuned away from every mode)
-    shows there even when the measurement has no peak of its own (retired 501037/47:
-    channel mean 126 around a 3.20 Hz appendage whose resonance merges with the
-    structure's response).
+    shows there even when the measurement has no peak of its own (a channel mean z^2 over
+    a hundred around an appendage whose resonance merges with the structure's response;
+    see docs/method/diagnosis.md).
     """
     mask = np.broadcast_to(mask, r.shape)
     rr = np.where(mask, r ** 2, 0.0)

@@ -59,7 +59,7 @@ def decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
         # no acceptance on the held-out points alone: their mean z^2 is carried by the few
         # anti-resonance points where a tiny parameter moves the model most and the noise
         # model is least sure (on a null FRF file, a coupling of 0.25 % of a story at
-        # dBIC -2.4 "halved" it; on the retired benchmark cases, held-out acceptance
+        # dBIC -2.4 "halved" it; on the earlier benchmark cases, held-out acceptance
         # accepted nothing else; see docs/method/diagnosis.md)
         r["accepted"] = not r["at_bound"] and ok and (
             r["delta_bic"] <= -BIC_ACCEPT

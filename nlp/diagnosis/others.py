@@ -60,9 +60,9 @@ def refits_of_others(others, state, jobs, scores_here, top):
 
     The score test is a first-order look at one test; a finding that ranks low
     here but high on another test of the structure would otherwise never be
-    refitted here, and two tests would take different paths (Cristallo: the
-    floor-2 gain ranked 9th by score on test_2.csv, yet its BIC drop there was
-    larger than that of the finding chosen)."""
+    refitted here, and two tests would take different paths (a sensor gain ranked
+    9th by score on one test of a real structure, yet its BIC drop there was larger
+    than that of the finding chosen)."""
     have = {repr(e) for _, e in jobs}
     for o in others:
         z_o, _ = other_optimum(o, state["current"], state["z"])
