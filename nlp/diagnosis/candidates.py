@@ -11,7 +11,7 @@ import numpy as np
 from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
-from nlp.diagnosis.fitting import build_problem, case_references, window_bands, with_values
+from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
 from nlp.solve.identify import tangent_basis
 
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
@@ -85,7 +85,7 @@ def score_at(pr, z, k):
 def score(case, target, current, z_cur, enrichment):
     """Score test of one candidate at its null value, on top of the current model."""
     null = enrichment.spec(case_references(case))["null"]
-    pr = build_problem(case, target, current + [enrichment], compile=False)
+    pr = diagnosis_problem(case, target, current + [enrichment], compile=False)
     return score_at(pr, with_values(pr, z_cur, null), len(enrichment.names))
 
 
@@ -114,7 +114,7 @@ def scan_secondary(case, target, current, z_cur, n_grid=48, resonances=()):
         if _has_appendage(current, floor):
             continue
         e = SecondaryOscillator(floor, float(grid[0]))
-        pr = build_problem(case, target, current + [e], compile=False)
+        pr = diagnosis_problem(case, target, current + [e], compile=False)
         scores = [score_at(pr, with_values(pr, z_cur, [PROBE_MU, f0, PROBE_ZETA]), 3)
                   for f0 in grid]
         values = np.array([sc for sc, _ in scores])
@@ -137,6 +137,6 @@ def hot_appendages(case, target, current, z_cur, hot, resonances=()):
             if _has_appendage(current, floor):
                 continue
             e = SecondaryOscillator(floor, float(h), resonances)
-            pr = build_problem(case, target, current + [e], compile=False)
+            pr = diagnosis_problem(case, target, current + [e], compile=False)
             out.append((e, score_at(pr, with_values(pr, z_cur, [PROBE_MU, h, PROBE_ZETA]), 3)))
     return out

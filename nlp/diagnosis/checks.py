@@ -12,7 +12,7 @@ from nlp.case.assemble import _detection_form
 from nlp.diagnosis.band import (MAX_SCATTER, band_map, band_mask, extra_modes, hot_spots,
                                 local_sigma)
 from nlp.diagnosis.families import HystereticDamping, SensorDelay
-from nlp.diagnosis.fitting import (build_problem, fit_target, fit_windows, noise_sigma,
+from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, noise_sigma,
                                    quasi_se, with_values)
 from nlp.diagnosis.loss import band_points, loss_decision, loss_row
 from nlp.diagnosis.phase import delay_check
@@ -76,7 +76,7 @@ def loss_check(case, state, delays, log):
     # nested fits hold the other locations at zero by their bounds: one build, n + 2 solves
     losses = [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]
     m = len(losses)
-    pr = build_problem(case, target, current + losses, optimize=False, max_iter=REFIT_ITER,
+    pr = diagnosis_problem(case, target, current + losses, optimize=False, max_iter=REFIT_ITER,
                        residual="complex")
     lo, hi = pr.bounds
     held_lo, held_hi = lo.copy(), hi.copy()

@@ -34,7 +34,7 @@ from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
-from nlp.diagnosis.fitting import (best_fit, build_problem, fit_target, fit_windows,
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
 from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.levels import nonlinearity
@@ -176,7 +176,7 @@ def points_stage(cfg, case, widen, hot, log):
     held = np.setdiff1d(held, fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = fit_target(case, fit, sig_fit)
-    base = build_problem(case, target)
+    base = diagnosis_problem(case, target)
     check_start_residuals(case, base)
     return Points(widen, fit, held, sig_fit, sig_held, target, base, tuple(hot))
 
@@ -190,7 +190,7 @@ def baseline_stage(cfg, case, points, seed, log):
         res, converged = scatter_best(
             pr, SearchConfig(starts=max(sc.starts, BASELINE_STARTS), seed=sc.seed,
                              workers=sc.workers, executor=sc.executor, scheduler=sc.scheduler),
-            setup=Setup(build_problem, case, points.target, value=pr))
+            setup=Setup(diagnosis_problem, case, points.target, value=pr))
     else:
         # the first look searched this model already; over 3x the points a search costs
         # about what the whole first look did, and a local minimum left here is caught by
@@ -339,7 +339,7 @@ def adopt(case, points, sel, others, results, accepted, log):
         sel.alternatives += accepted
         return False
     if best["problem"] is None or not best["converged"]:  # rebuilt without the cap
-        best["problem"] = build_problem(case, points.target,
+        best["problem"] = diagnosis_problem(case, points.target,
                                         state["current"] + [best["enrichment"]], optimize=False)
     if not best["converged"]:
         continue_refit(best, case, points.held, points.sig_held, log)

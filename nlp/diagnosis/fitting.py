@@ -35,7 +35,7 @@ def fit_target(case, idx, sigma):
                   ground_r=tg.ground_r, kernel=tg.kernel)
 
 
-def build_problem(case, target, enrichments=(), values=None, compile=True, optimize=True,
+def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, optimize=True,
              damping=None, max_iter=None, residual=None):
     """The updating NLP; optimize=False compiles quicker, slower-running C (a refit).
 

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from nlp.case.assemble import dashpot_damping
-from nlp.diagnosis.fitting import best_fit, build_problem, quasi_se
+from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.priors import (damper_check, decompose_damping, floor_of_mass, prior_check,
                                   prior_sigmas)
 from nlp.model.damping import GeneralDamping
@@ -153,18 +153,21 @@ def _parameter_table(pr, theta, se, sigmas):
 
 
 def dashpot_refit(case, state):
-    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.assemble.dashpot_damping`).
+    """The current model refitted with C = a0 M + story dashpots
+    (:func:`nlp.case.assemble.dashpot_damping`).
 
     A general C has n (n + 1) / 2 parameters, and a decomposition of its point estimate
     carries all their scatter (on the benchmark, true dampers were missed and null cases'
-    random dashpots called dampers; see docs/method/diagnosis.md). When the structured C fits as well (its chi-square
-    excess, scaled by the remaining misfit, is below the difference in parameters times
-    ln N, as in BIC), its story dashpots are estimated directly, with their own errors.
-    Starts: the non-negative decomposition of the fitted general C, and Rayleigh.
+    random dashpots called dampers; see docs/method/diagnosis.md). When the structured C
+    fits as well (its chi-square excess, scaled by the remaining misfit, is below the
+    difference in parameters times ln N, as in BIC), its story dashpots are estimated
+    directly, with their own errors. Starts: the non-negative decomposition of the
+    fitted general C, and Rayleigh.
     """
     pr, z = state["problem"], state["z"]
     damping, params = dashpot_damping(case)
-    pd = build_problem(case, pr.target, state["current"], optimize=False, damping=(damping, params))
+    pd = diagnosis_problem(case, pr.target, state["current"], optimize=False,
+                           damping=(damping, params))
     theta = pr.theta(z)
     sa, sb, _ = pr.params.slices()
     M, _, C = pr.matrices(z)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.linalg import null_space
 
 from nlp.case.assemble import assemble
-from nlp.diagnosis.fitting import (best_fit, build_problem, fit_target, fit_windows,
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, normalised, quasi_se, scatter_best)
 from nlp.diagnosis.harmonics import harmonic_location, story_vectors
 from nlp.frf.reference import modal_parameters
@@ -31,7 +31,7 @@ def level_fit(cfg, path, z_start=None):
     c = assemble(cfg, data_file=path)
     sig = noise_sigma(c, c.selected)
     tg = fit_target(c, c.selected, sig)
-    pr = build_problem(c, tg)
+    pr = diagnosis_problem(c, tg)
     res, _ = scatter_best(pr, SearchConfig(starts=LEVEL_STARTS, seed=cfg.search.seed))
     if z_start is not None:
         alt = pr.solve(z_start)
@@ -272,7 +272,7 @@ def _shared_fit(ref, lv, release=None, theta_start=None, theta_held=None):
         replace(p, fixed=True, initial=float(theta_r[i])) if i in held and not p.fixed else p
         for i, p in enumerate(pr_l.params.params)))
     c = lv["case"]
-    pr = build_problem(c, pr_l.target, optimize=False, damping=(c.damping, params))
+    pr = diagnosis_problem(c, pr_l.target, optimize=False, damping=(c.damping, params))
     # starts: the level's own damping, and the reference level's (and a given optimum)
     starts = [params.z_from_theta(pr_l.theta(lv["z"])), params.z_from_theta(theta_r)]
     if theta_start is not None:

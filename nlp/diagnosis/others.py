@@ -13,7 +13,7 @@ from nlp.case.load import ExcitationConfig
 from nlp.diagnosis.candidates import candidates, same, score, to_refit
 from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms, evidence,
                                     scaled_delta_bic, significance)
-from nlp.diagnosis.fitting import (best_fit, build_problem, fit_target, fit_windows,
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, quasi_se, with_values)
 
 
@@ -49,7 +49,7 @@ def other_optimum(o, current, z_here):
     adopted its optimum there comes from :func:`hold_on_others`."""
     key = tuple(repr(e) for e in current)
     if key not in o["at"]:
-        pr = build_problem(o["case"], o["target"], current, optimize=False)
+        pr = diagnosis_problem(o["case"], o["target"], current, optimize=False)
         res = best_fit(pr, [z_here, pr.z0])
         o["at"][key] = (res.z, 2 * res.f)
     return o["at"][key]
@@ -97,7 +97,7 @@ def hold_on_others(others, state, accepted, log):
         holds_all, d_sum, there = True, 0.0, {}
         for o in others:
             z_o, chi_o = refs[o["label"]]
-            pr2 = build_problem(o["case"], o["target"], state["current"] + [r["enrichment"]],
+            pr2 = diagnosis_problem(o["case"], o["target"], state["current"] + [r["enrichment"]],
                            optimize=False)
             res = best_fit(pr2, [r["z"], with_values(pr2, z_o, v1), pr2.z0])
             th2, se2 = pr2.theta(res.z), quasi_se(pr2, res.z)[0]

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from nlp.diagnosis.evidence import BIC_ACCEPT, dispersion
-from nlp.diagnosis.fitting import (best_fit, build_problem, case_references, normalised,
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, case_references, normalised,
                                    quasi_se, with_values)
 from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
 from nlp.solve.executors import Setup, make_executor
@@ -34,7 +34,7 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
     """Fit the current model plus candidate e: values, quasi-likelihood errors, chi-squares."""
     refs = case_references(case)
     # 3-5 solves: gcc -O2 would take longer than they do (same numbers at -O0)
-    pr = build_problem(case, target, current + [e], optimize=False, max_iter=REFIT_ITER)
+    pr = diagnosis_problem(case, target, current + [e], optimize=False, max_iter=REFIT_ITER)
     k = len(e.names)
     sp = e.spec(refs)
     # start the added parameters inside their box, not on a zero bound
@@ -157,7 +157,7 @@ def prune(case, target, found, state, n_fit, held, sig_held, log):
         best_drop = None
         for r in found:
             keep = [x for x in found if x is not r]
-            pr = build_problem(case, target, [x["enrichment"] for x in keep], optimize=False)
+            pr = diagnosis_problem(case, target, [x["enrichment"] for x in keep], optimize=False)
             z = np.concatenate([state["z"][:pr.params.n_z - sum(len(x["parameters"]) for x in keep)]]
                                + [_params_z(pr, x, state) for x in keep])
             res = best_fit(pr, [z])

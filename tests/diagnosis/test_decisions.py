@@ -7,6 +7,7 @@ complex noise, written as an NPZ FRF file next to a case file.
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,17 +15,33 @@ import yaml
 from scipy.linalg import eigh
 
 from conftest import shear_K
-from nlp.case.load import load_case
+import nlp.diagnosis.candidates as cand
+import nlp.diagnosis.driver as D
+import nlp.diagnosis.widen as W
 from nlp.case.assemble import assemble
-from nlp.diagnosis.decide import decide
+from nlp.case.load import load_case
+from nlp.diagnosis.band import extra_modes, hot_spots, local_sigma
+from nlp.diagnosis.candidates import candidates
+from nlp.diagnosis.decide import better_unresolved, decide
 from nlp.diagnosis.driver import diagnose
-from nlp.diagnosis.refit import repolish
-from nlp.diagnosis.verdict import classify, public
-from nlp.diagnosis.fitting import normalised, build_problem, fit_target, fit_windows, noise_sigma
 from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, STRONG_BIC, dispersion,
-                                    evidence,
-                                    held_out_excess, held_out_ok, scaled_delta_bic, tied)
-from nlp.diagnosis.priors import decompose_damping, story_patterns
+                                    evidence, held_out_excess, held_out_ok, scaled_delta_bic,
+                                    tied)
+from nlp.diagnosis.families import ZETA_S_MIN, SecondaryOscillator
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
+                                   noise_sigma, normalised, scatter_best, signed)
+from nlp.diagnosis.inside import dashpot_refit
+from nlp.diagnosis.levels import (level_fit, level_location, release_location, released_story,
+                                  shared_stiffness)
+from nlp.diagnosis.others import refits_of_others, setup_others
+from nlp.diagnosis.priors import (STORY_ZETA, damper_check, damping_excess, decompose_damping,
+                                  modal_share, story_damping_ratio, story_patterns)
+from nlp.diagnosis.refit import repolish
+from nlp.diagnosis.resolution import (appendage_split, damping_pinned, estimate_resolution,
+                                      resolved)
+from nlp.diagnosis.verdict import classify, public
+from nlp.frf.noise import second_difference_factor
+from nlp.solve.search import SearchConfig
 
 F = np.arange(0.5, 16.0, 0.02)
 
@@ -41,7 +58,7 @@ def _accelerance(M, C, K, floor, rng, noise=0.01):
     return H * (1 + noise * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)))
 
 
-def _case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
+def write_case_yaml(folder, m_nom, k_nom, files, parameters, damping, channels=3):
     """Write case.yaml for the FRF files [(name, force floor)] (first is the update)."""
     data = {"file": files[0][0],
             "channels": [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance",
@@ -59,11 +76,13 @@ def _case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
     return load_case(str(folder / "case.yaml"))
 
 
-def _write(folder, name, H):
+def write_frf(folder, name, H):
+    """Store the FRFs H (n_ch, len(F)) on the grid F as an NPZ FRF file."""
     np.savez(folder / name, f=F, H=H)
 
 
-def _frame(m, k, zeta=0.015):
+def frame_matrices(m, k, zeta=0.015):
+    """M, C, K of a shear frame with Rayleigh damping zeta at its first and last modes."""
     M, K = np.diag(m), shear_K(k)
     w = np.sqrt(eigh(K, M, eigvals_only=True))
     a1 = 2 * zeta / (w[0] + w[-1])
@@ -77,9 +96,9 @@ def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
     m_nom, k_nom = [5.0, 5.0, 5.0], [3000.0, 2800.0, 2600.0]
     m = np.array([5.0, 7.5, 5.0])                # +2.5 kg on floor 2: +50 %, 5 prior sigmas
     k = np.array(k_nom) * [1.1, 0.95, 1.05]      # ordinary changes, inside the 25 % prior
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, m_nom, k_nom, [("frf.npz", 1)],
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, m_nom, k_nom, [("frf.npz", 1)],
                 {"prior": {"masses": 0.10, "stiffnesses": 0.25}},
                 {"model": "rayleigh", "zeta": 0.015})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -97,11 +116,11 @@ def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
 def test_concentrated_damper_from_the_fitted_damping(tmp_path):
     rng = np.random.default_rng(2)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     e = np.array([-1.0, 1.0, 0.0])               # dashpot between floors 1 and 2
     C = C + 12.0 * np.outer(e, e)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)],
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "general", "zeta": 0.01})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -120,15 +139,13 @@ def test_widened_look_after_a_finding_starts_from_the_first(tmp_path, monkeypatc
     3x wider windows: the first look's optima start that look (no second scatter search),
     its finding is re-proven alone (one refit) before the other candidates, and it is kept
     with its value (900 N/m within its uncertainty)."""
-    import nlp.diagnosis.driver as D
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, _coupled(k, 900.0), 1, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+    M, C, _ = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, _coupled(k, 900.0), 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     searches, rounds, lines = [], [], []
-    import nlp.diagnosis.widen as W
     search, refit_all = D.scatter_best, D.refit_all
     monkeypatch.setattr(D, "scatter_best", lambda *a, **kw: searches.append(1) or search(*a, **kw))
     monkeypatch.setattr(D, "refit_all", lambda jobs, sc: rounds.append((len(lines), len(jobs)))
@@ -173,12 +190,12 @@ def test_finding_must_hold_on_the_other_test(tmp_path, same_structure):
     without the coupling, it does not, and the verdict says so."""
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
-    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
     K2 = K if same_structure else shear_K(k)
-    _write(tmp_path, "test2.npz", _accelerance(M, C, K2, 2, rng))
-    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+    write_frf(tmp_path, "test2.npz", _accelerance(M, C, K2, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -322,15 +339,15 @@ def test_current_model_re_solved_from_a_refit_leaves_a_local_minimum(tmp_path, r
     the re-solve starts there and reaches the optimum of a solve from the true parameters;
     nothing changes when the current model is already there."""
     m, k = np.array([5.0, 4.0, 3.0]), np.array([4000.0, 3500.0, 3000.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, 1.15 * m, 0.8 * k, [("frf.npz", 1)],
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, 1.15 * m, 0.8 * k, [("frf.npz", 1)],
                 {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.5, 1.0]},
                 {"model": "rayleigh", "zeta": 0.02})
     case = assemble(cfg)
     fit = fit_windows(cfg, case, 1)
     held = np.setdiff1d(fit_windows(cfg, case, 3), fit)
-    pr = build_problem(case, fit_target(case, fit, noise_sigma(case, fit)), optimize=False)
+    pr = diagnosis_problem(case, fit_target(case, fit, noise_sigma(case, fit)), optimize=False)
     truth = pr.params.z_from_theta(np.concatenate([m / (1.15 * m) - 1, k / (0.8 * k) - 1,
                                                    pr.theta(pr.z0)[6:]]))
     ref = pr.solve(truth)
@@ -391,7 +408,6 @@ def test_an_appendage_refit_also_starts_at_each_unexplained_resonance():
     """The extra modes of the whole band are starts of the appendage refit when they lie
     inside its frequency box and away from the scan's own start; they are not part of
     the candidate's identity (same repr, equal candidates)."""
-    from nlp.diagnosis.families import SecondaryOscillator
     e = SecondaryOscillator(1, 8.17, resonances=(9.52, 30.0, 8.2, 3.0))
     assert e.starts({}) == [[0.01, 9.52, 0.02]]
     assert e == SecondaryOscillator(1, 8.17) and repr(e) == repr(SecondaryOscillator(1, 8.17))
@@ -431,8 +447,6 @@ def test_an_appendage_whose_damping_sits_on_its_lower_bound_is_refused():
     (retired 83439/50: 0.00102 +- 0.00033 against 0.001) is a line as sharp as the
     model allows, not a resonance: refused, with the reason. Two errors above the
     bound it stands; an undetermined damping (error above its value) does not decide."""
-    from nlp.diagnosis.resolution import damping_pinned
-    from nlp.diagnosis.families import ZETA_S_MIN, SecondaryOscillator
     assert SecondaryOscillator(4, 5.0).spec({})["lower"][2] == ZETA_S_MIN
     assert damping_pinned(0.00102, 0.00033, 0.001)
     assert not damping_pinned(0.001 + 2 * 0.00033, 0.00033, 0.001)
@@ -450,7 +464,6 @@ def test_a_better_unresolved_appendage_is_said_beside_the_finding():
     146094/12): the coupling is still the best accepted candidate, and the appendage is
     returned as a better explanation the data cannot resolve. One that trails the coupling,
     or one refused for its errors, is not."""
-    from nlp.diagnosis.decide import better_unresolved
     split = {"separation_hz": 0.49, "half_widths_hz": 0.68, "resolution_hz": 0.05,
              "appendage_mode_hz": 8.39, "nearest_mode_hz": 7.90, "resolved": False}
     coupling = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, 2000.0), held_out=1.89)
@@ -476,10 +489,9 @@ def test_extra_mode_found_with_its_channels_and_nothing_else():
     """A 3-storey frame 'measured' with an appendage on floor 3 tuned to 11 Hz (a mode the
     3-DOF model lacks); the model is the frame alone. The extra mode is reported at its
     frequency on the channels that see it; the frame's own modes and zeros are not."""
-    from nlp.diagnosis.band import extra_modes, local_sigma
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
     ms, fs = 0.05, 11.0                       # 1 % of a floor, 0.5 % damping
     ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * 0.005 * ms * 2 * np.pi * fs
@@ -513,10 +525,9 @@ def test_hot_spot_of_an_appendage_between_two_modes():
     within 4 % of its modes are the fitted ones. The largest misfit off them lies at the
     appendage (within 15 %: the residual peaks on the resonance-antiresonance pair it
     makes); the frame measured with noise has none; fitted points are never one."""
-    from nlp.diagnosis.band import hot_spots
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.02)
+    M, C, K = frame_matrices(m, k, zeta=0.02)
     fn = np.sqrt(eigh(K, M, eigvals_only=True)) / (2 * np.pi)
     H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
     ms, fs = 0.25, 3.2
@@ -545,8 +556,6 @@ def test_local_sigma_of_a_windowed_estimate_counts_its_correlated_bins():
     local scatter read with the window's second-difference factor recovers the point
     standard deviation (np.std of the errors themselves); read as independent bins it
     understates it by sqrt(6 / 2.5) = 1.55."""
-    from nlp.diagnosis.band import local_sigma
-    from nlp.frf.noise import second_difference_factor
     rng = np.random.default_rng(3)
     n, taps = 20000, np.array([-0.25, 0.5, -0.25])   # a Hann window in the frequency domain
 
@@ -566,9 +575,8 @@ def test_modal_share_of_a_story_dashpot():
     """A dashpot that is the only damping supplies all of every mode's damping;
     Rayleigh damping has no excess anywhere; a 12 N s/m dashpot over 1 % Rayleigh
     damping dominates (the phi^T C phi of each mode checked by hand-built sums)."""
-    from nlp.diagnosis.priors import damping_excess, modal_share
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     P = story_patterns(3)
     only = 7.0 * P[1]
     share = modal_share(M, K, only, damping_excess(only, M, K)[0])
@@ -589,7 +597,6 @@ def test_appendage_split_of_a_tuned_absorber_and_what_resolves_it():
     (w/w0)^2 = 1 + mu/2 +- sqrt(mu + mu^2/4) (Den Hartog). A tiny one (mu = 0.0004) splits
     by less than the half-power half-widths of 2 % damping: one reshaped peak; mu = 0.05 splits
     by about f sqrt(mu), far wider: a resonance of its own."""
-    from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
     m0, f0 = 10.0, 3.0
     k0 = m0 * (2 * np.pi * f0) ** 2
     for mu, expect in ((0.0004, False), (0.05, True)):
@@ -619,7 +626,6 @@ def test_a_damped_appendage_whose_half_power_bands_stand_apart_is_resolved():
     overlap and the appendage is a resonance of its own, although its full bandwidth
     (0.87 Hz) exceeds the separation. Closer than the half-widths, or than the
     estimate's resolution, it is not."""
-    from nlp.diagnosis.resolution import appendage_split, resolved
     m = np.array([10.0, 0.5])
     f = np.array([8.08, 8.73])
     zeta = np.array([0.01, 0.05])
@@ -653,7 +659,6 @@ def test_no_damper_claimed_next_to_a_story_dashpot_pinned_at_zero():
     it is a concentrated damper; with story 1's dashpot at zero (the non-negative
     decomposition on its bound) story 2 may carry story 1's damping, and nothing is
     claimed."""
-    from nlp.diagnosis.priors import damper_check
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     pr = _DampedFrame(m, k)
     cov = np.diag(np.full(4, 1e-6))
@@ -669,7 +674,6 @@ def test_damper_away_from_a_pinned_story_is_claimed_against_the_unpinned_stories
     """Four stories, story 1 pinned at zero and story 3 far above the others: the damper is
     claimed, and its share is measured against stories 2 and 4 only (the pinned zero would
     halve the median c / k and double the ratio)."""
-    from nlp.diagnosis.priors import damper_check
     m, k = np.array([5.0, 5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0, 2400.0])
     pr = _DampedFrame(m, k)
     cov = np.diag(np.full(5, 1e-6))
@@ -688,7 +692,6 @@ def test_story_damping_ratio_by_hand():
     the ratio is e / (2 sqrt(k_2 m_2)) / (a1 median(omega) / 2). With the dashpot left
     in its own yardstick (removed = 0) the median is that of a1 K + e P_2, by a separate
     eigen-solution."""
-    from nlp.diagnosis.priors import story_damping_ratio, story_patterns
     m, k = np.array([4.0, 6.0, 5.0]), np.array([3000.0, 2500.0, 2000.0])
     M, K = np.diag(m), shear_K(k)
     a1 = 0.002
@@ -709,7 +712,6 @@ def test_damper_must_stand_out_one_standard_error_below_its_estimate():
     times the median modal damping. Determined to 1 %, it is a concentrated damper; with a
     standard error that puts it below STORY_ZETA one error lower, it is not, though it
     stands well over DETERMINED standard errors from zero."""
-    from nlp.diagnosis.priors import STORY_ZETA, damping_excess, damper_check, story_damping_ratio
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     pr = _DampedFrame(m, k)
     base = np.array([0.1, 3.0, 0.0, 2.6])
@@ -741,23 +743,20 @@ def test_candidates_ranked_high_on_the_other_test_are_refitted(tmp_path):
     other test's ranking adds it to the refits, so both tests take the same path.
     Here this test's own list is emptied: the coupling must come from the other test,
     whose score at its own baseline optimum ranks it first."""
-    from nlp.diagnosis.others import refits_of_others, setup_others
-    from nlp.diagnosis.fitting import best_fit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
-    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "test2.npz", _accelerance(M, C, K, 2, rng))
-    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+    write_frf(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "test2.npz", _accelerance(M, C, K, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     case = assemble(cfg)
     idx = fit_windows(cfg, case, 1)
-    pr = build_problem(case, fit_target(case, idx, noise_sigma(case, idx)))
+    pr = diagnosis_problem(case, fit_target(case, idx, noise_sigma(case, idx)))
     z = best_fit(pr, [pr.z0]).z
     others = setup_others(cfg)
-    from nlp.diagnosis.candidates import candidates
     here = {repr(e): 1.0 for e in candidates(case)}
     jobs = refits_of_others(others, {"current": [], "z": z}, [], here, top=1)
     assert [e.family for _, e in jobs].count("nonadjacent_coupling") == 1
@@ -775,11 +774,11 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
     too. Cristallo, where it did not, is in notes.md.)"""
     rng = np.random.default_rng(11)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
     gain = np.array([1.0, 0.88, 1.0])[:, None]
     for name, floor in (("test1.npz", 1), ("test2.npz", 2)):
-        _write(tmp_path, name, gain * _accelerance(M, C, K, floor, rng))
+        write_frf(tmp_path, name, gain * _accelerance(M, C, K, floor, rng))
     params = {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}}
     damping = {"model": "rayleigh", "zeta": 0.015}
     out = []
@@ -788,7 +787,7 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
         folder.mkdir()
         for name, _ in order:
             (folder / name).symlink_to(tmp_path / name)
-        res = diagnose(_case(folder, m, k, order, params, damping), str(folder / "out"),
+        res = diagnose(write_case_yaml(folder, m, k, order, params, damping), str(folder / "out"),
                        log=lambda *_: None)
         out.append({(f["physics"], repr(f["location"])): f for f in res["findings"]
                     if "uncertainty" in f})
@@ -800,14 +799,12 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
                                                                   g["uncertainty"][n])
 
 
-def _baseline(cfg, starts=6):
+def baseline_fit(cfg, starts=6):
     """The case's own general-C fit on its half-power windows (a short scatter search)."""
-    from nlp.diagnosis.fitting import scatter_best
-    from nlp.solve.search import SearchConfig
     case = assemble(cfg)
     fit = fit_windows(cfg, case, 1)
     target = fit_target(case, fit, noise_sigma(case, fit))
-    pr = build_problem(case, target)
+    pr = diagnosis_problem(case, target)
     res, _ = scatter_best(pr, SearchConfig(starts=starts, seed=0, workers=1))
     return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}
 
@@ -818,23 +815,21 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     structured refit (C = a0 M + story dashpots) fits as well as the general C, and its
     story dashpots stand within 4 of their own standard errors of the true ones (true
     c_s = a1 k_s + dashpot_s, the story pattern of a stiffness-proportional C)."""
-    from nlp.diagnosis.inside import dashpot_refit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
-    M, C_r, K = _frame(m, k, zeta=0.01)
+    M, C_r, K = frame_matrices(m, k, zeta=0.01)
     a1 = C_r[0, 1] / -k[1]                        # from the off-diagonal of a1 K
     a0 = (C_r[0, 0] - a1 * (k[0] + k[1])) / m[0]
     dash = np.array([1.5, 0.5, 14.0, 1.0])        # N s/m; story 3 is a damper
     C = C_r + sum(c * P for c, P in zip(dash, story_patterns(4)))
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 2, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.01}, channels=4)
-    case, state = _baseline(cfg)
+    case, state = baseline_fit(cfg)
     s = dashpot_refit(case, state)
     assert s["fits"], s
-    from nlp.diagnosis.priors import decompose_damping as dec
     Mz, _, Cz = s["problem"].matrices(s["z"])
-    a0_fit, c_fit, left = dec(Cz, Mz)
+    a0_fit, c_fit, left = decompose_damping(Cz, Mz)
     assert left < 1e-9                             # C is of the family by construction
     se = np.sqrt(np.diag(s["cov"]))
     # the decision variables behind the dashpots: c_s = a1_ref theta_s k0_s, linear
@@ -849,8 +844,8 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     # a general C that no story-dashpot family holds (a strong 1-3 dashpot) is refused
     e13 = np.array([1.0, 0.0, -1.0, 0.0])
     C13 = C_r + 30.0 * np.outer(e13, e13)
-    _write(tmp_path, "frf.npz", _accelerance(M, C13, K, 2, rng))
-    case, state = _baseline(load_case(str(tmp_path / "case.yaml")))
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C13, K, 2, rng))
+    case, state = baseline_fit(load_case(str(tmp_path / "case.yaml")))
     s13 = dashpot_refit(case, state)
     assert not s13["fits"] and s13["excess"] > s13["limit"], s13
 
@@ -862,15 +857,13 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
     level does not (the rise is many times the price), and freeing one story's stiffness
     at a time names story 2: its refit takes nearly all of the rise (over 0.8 of it), the
     others under half."""
-    from nlp.diagnosis.levels import (level_fit, level_location, release_location,
-                                      released_story, shared_stiffness)
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.015)
-    _write(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "same.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "stiff.npz", _accelerance(M, C, shear_K(k * [1.0, 1.06, 1.0]), 1, rng))
-    cfg = _case(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k, zeta=0.015)
+    write_frf(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "same.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "stiff.npz", _accelerance(M, C, shear_K(k * [1.0, 1.06, 1.0]), 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.015})
     cfg = replace(cfg, solver=replace(cfg.solver, options={"max_iter": 3000}))
     ref = level_fit(cfg, cfg.data.file)
@@ -906,15 +899,14 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
     set of masses and stiffnesses for both levels is a chi-square of k = 5 degrees of
     freedom (k1-k3, m2, m3 free; m1 weighed): mean 5, SD of a mean of four 1.6. Its
     bound at the information-weighted set must come near that."""
-    from nlp.diagnosis.levels import level_fit, shared_stiffness
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.015)
+    M, C, K = frame_matrices(m, k, zeta=0.015)
     excess, rise = [], []
     for _ in range(4):
-        _write(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng, noise=0.04))
-        _write(tmp_path, "hi.npz", _accelerance(M, C, K, 1, rng, noise=0.01))
-        _case(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
+        write_frf(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng, noise=0.04))
+        write_frf(tmp_path, "hi.npz", _accelerance(M, C, K, 1, rng, noise=0.01))
+        write_case_yaml(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
               {"model": "general", "zeta": 0.015})
         # bin-by-bin FRFs: no analyzer window, so the noise model is the scatter alone
         case = yaml.safe_load((tmp_path / "case.yaml").read_text())
@@ -934,7 +926,6 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
 def test_a_release_location_needs_every_other_refit_converged():
     """An unconverged refit's drop is only a lower bound: the largest drop names its story
     only when the others converged, whichever converged itself."""
-    from nlp.diagnosis.levels import released_story
     assert released_story([(5.0, True), (40.0, False), (9.0, True)]) == 1
     assert released_story([(5.0, True), (40.0, True), (9.0, False)]) is None
     assert released_story([(50.0, True), (40.0, True), (9.0, True)]) == 0
@@ -945,13 +936,13 @@ def test_no_held_out_points_gives_an_empty_residual(tmp_path):
     residual there is empty, not a CasADi map over zero frequencies (held-back 610789/24
     stopped with 'Degenerate map operation')."""
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(0)))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(0)))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "rayleigh", "zeta": 0.015})
     case = assemble(cfg)
     fit = fit_windows(cfg, case, 1)
-    pr = build_problem(case, fit_target(case, fit, noise_sigma(case, fit)))
+    pr = diagnosis_problem(case, fit_target(case, fit, noise_sigma(case, fit)))
     r = normalised(pr, pr.z0, case, np.array([], int), np.zeros((3, 0)))
     assert r.shape == (3, 0)
 
@@ -961,8 +952,6 @@ def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
     a floor's best scan frequency lies within 10 % of a fitted resonance, the best one
     away from all of them is refitted too. Scores here are a stand-in profile: a spike
     at the 2 Hz resonance and a broad bump at 3.5 Hz, between the resonances."""
-    from types import SimpleNamespace
-    import nlp.diagnosis.candidates as C
     f = np.linspace(0.5, 12.0, 2301)
     sel = np.concatenate([np.flatnonzero(np.abs(f - fr) <= 0.04 * fr) for fr in (2.0, 5.0, 8.0)])
     case = SimpleNamespace(f=f, selected=sel, model=SimpleNamespace(n=2))
@@ -970,17 +959,17 @@ def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
     def score(f0):
         return 100.0 * math.exp(-((f0 - 2.0) / 0.05) ** 2) + 40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2)
 
-    monkeypatch.setattr(C, "build_problem", lambda *a, **k: None)
-    monkeypatch.setattr(C, "with_values", lambda pr, z, v: v[1])
-    monkeypatch.setattr(C, "score_at", lambda pr, f0, k: (score(f0), 1.0))
-    out = C.scan_secondary(case, None, [], None)
+    monkeypatch.setattr(cand, "diagnosis_problem", lambda *a, **k: None)
+    monkeypatch.setattr(cand, "with_values", lambda pr, z, v: v[1])
+    monkeypatch.setattr(cand, "score_at", lambda pr, f0, k: (score(f0), 1.0))
+    out = cand.scan_secondary(case, None, [], None)
     assert [e.floor for e, _ in out] == [1, 1, 2, 2]
     near, away = out[0][0].f0, out[1][0].f0
     assert abs(near / 2.0 - 1) < 0.1
     assert abs(away / 3.5 - 1) < 0.05
     # a best frequency away from every resonance needs no second candidate
-    monkeypatch.setattr(C, "score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
-    assert len(C.scan_secondary(case, None, [], None)) == 2
+    monkeypatch.setattr(cand, "score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
+    assert len(cand.scan_secondary(case, None, [], None)) == 2
 
 
 @pytest.mark.parametrize("residual", ["log_magnitude", "complex"])
@@ -988,17 +977,16 @@ def test_signed_residuals_carry_the_objective_chi_square(tmp_path, residual):
     """The spread of the baseline chi-square (diagnosis.spread) is read from signed: its sum
     of squares must be the chi-square the solver minimises (2 x objective), for the
     log-magnitude residual and for the complex one (real and imaginary parts)."""
-    from nlp.diagnosis.fitting import signed
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(4)))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(4)))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "rayleigh", "zeta": 0.015})
     cfg = replace(cfg, objective=replace(cfg.objective, residual=residual))
     case = assemble(cfg)
     fit = fit_windows(cfg, case, 1)
     sig = noise_sigma(case, fit)
-    pr = build_problem(case, fit_target(case, fit, sig), optimize=False)
+    pr = diagnosis_problem(case, fit_target(case, fit, sig), optimize=False)
     z = pr.z0
     r = signed(pr, z, case, fit, sig)
     assert r.shape[0] == (6 if residual == "complex" else 3)

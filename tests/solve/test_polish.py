@@ -105,7 +105,7 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     is left so (it is continued when adopted); the same NLP without the cap is finished
     by Newton steps when IPOPT stops at its limit."""
     from helpers_case import write_case
-    from nlp.diagnosis.fitting import build_problem
+    from nlp.diagnosis.fitting import diagnosis_problem
     from nlp.case.assemble import assemble
     from nlp.case.load import load_case
     from nlp.solve.problem import UpdatingProblem
@@ -120,11 +120,11 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
         return real(self, *a)
 
     monkeypatch.setattr(UpdatingProblem, "_polish", counted)
-    capped = build_problem(case, case.target, compile=False, max_iter=2)
+    capped = diagnosis_problem(case, case.target, compile=False, max_iter=2)
     res = capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert not capped.polish_unconverged and calls == []
     assert res.status == "Maximum_Iterations_Exceeded" and not res.success
     capped.polish_unconverged = True     # the uncapped rule on the same stop
     capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert calls == [True]
-    assert D._problem(case, case.target, compile=False).polish_unconverged
+    assert diagnosis_problem(case, case.target, compile=False).polish_unconverged
