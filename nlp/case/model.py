@@ -1,7 +1,6 @@
 """The case's structural model and where its sensors and input sit: the nominal model of the
 model section, and the row (DOF) of a floor, or of a node and DOF, of that model."""
 
-import numpy as np
 
 from nlp.case.checks import check_model_matrices
 from nlp.errors import InputError

@@ -9,6 +9,7 @@ them.
 """
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import find_peaks
 
 __all__ = ["band_mask", "local_sigma", "band_map", "extra_modes", "hot_spots"]
@@ -34,7 +35,6 @@ def local_sigma(L, half=32, d2_factor=6.0):
     be a 3.2-sigma one. The moving median ignores a narrow resonance, whose second
     differences are large only over a few points.
     """
-    from scipy.ndimage import median_filter
     d2 = np.abs(np.diff(L, 2, axis=1))
     d2 = np.pad(d2, ((0, 0), (1, 1)), mode="edge")
     med = median_filter(d2, size=(1, 2 * half + 1), mode="nearest")
@@ -172,9 +172,9 @@ def hot_spots(f, r, mask, exclude=(), z2=HOT_Z2, n_max=2, separation=0.2, smooth
     point, averaged over ``smooth`` points, is read at its largest values off the
     fitted points, at most ``n_max`` of them, ``separation`` (relative) apart, each above
     ``z2``. An effect between the resonances (an appendage tuned away from every mode)
-    shows there even when the measurement has no peak of its own (retired 501037/47:
-    channel mean 126 around a 3.20 Hz appendage whose resonance merges with the
-    structure's response).
+    shows there even when the measurement has no peak of its own (a channel mean z^2 over
+    a hundred around an appendage whose resonance merges with the structure's response;
+    see docs/method/diagnosis.md).
     """
     mask = np.broadcast_to(mask, r.shape)
     rr = np.where(mask, r ** 2, 0.0)

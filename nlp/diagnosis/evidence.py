@@ -11,8 +11,6 @@ phi x BIC_TIE.
 
 import math
 
-import numpy as np
-
 from nlp.solve.identify import gauss_newton_covariance
 
 __all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "HELD_OUT_FLOOR", "STRONG_BIC", "held_out_ok", "SIGNIFICANCE", "AGREE", "NUISANCE",
@@ -31,37 +29,36 @@ AGREE = 3.0            # two tests agree when they differ by less than this many
 # Parameters that shape an effect without measuring it. An appendage's damping ratio
 # is set by its own resonance, which often lies between the fitted half-power windows:
 # the data can then prove the appendage (its mass ratio, its frequency) and leave its
-# damping open (blind case 756725/13: floor-4 appendage, dBIC -1011, held-out 6.55 ->
-# 1.06, zeta_s 0.025 +- 0.11). Such a parameter is reported as not determined; it
-# never decides whether the effect is there. A flexible base is measured by its
+# damping open (an appendage proven by a dBIC in the thousands, with a damping ratio
+# whose error is four times its value). Such a parameter is reported as not determined;
+# it never decides whether the effect is there. A flexible base is measured by its
 # flexibility; its dashpot shapes the resonance the same way an appendage's damping
-# does (retired 84960/13: a flexible base cut the held-out misfit 1926 -> 18 and was
-# refused because c_base had an error above its value). Its mass trades against its
-# stiffness (together they set the base resonance; 84960/08: m_base 26.7 +- 42 kg
-# against a true 7.1 kg at dBIC -175.8), so the base is proven by its chi-square drop
-# (LIKELIHOOD_RATIO) and its mass and dashpot may be left open.
+# does (a flexible base that cut the held-out misfit a hundredfold was refused for a
+# c_base error above its value). Its mass trades against its stiffness (together they
+# set the base resonance: a base mass has come out with an error above its value), so
+# the base is proven by its chi-square drop (LIKELIHOOD_RATIO) and its mass and dashpot
+# may be left open. See docs/method/diagnosis.md.
 NUISANCE = {"secondary_oscillator": ("zeta_s",), "base_flexibility": ("m_base", "c_base")}
 
 # Families whose effect is tested by the chi-square drop (likelihood ratio) instead of
 # the Wald error of their strength. An appendage's mass ratio trades against its tuning
-# and damping, so its Gauss-Newton error says little about whether mu = 0 fits: blind
-# 146094/12 refitted from its true 8.89 Hz dropped the chi-square by 130 (held-out 2.48
-# -> 1.18) with mu = 0.0115 +- 0.0079, 1.5 standard errors. Its error must still stay
+# and damping, so its Gauss-Newton error says little about whether mu = 0 fits: a true
+# appendage refitted from its own frequency dropped the chi-square by over a hundred and
+# halved the held-out misfit with mu at 1.5 standard errors. Its error must still stay
 # below its value (significance). A flexible base likewise: its flexibility 1/k_b
-# trades against the base mass (together they set the base resonance), so retired
-# 84960/08 (k_b 11,400 N/m) refitted to dBIC -175.8, held-out 2.46 -> 1.27, with
-# 1/k_b = 2.8e-5 +- 3e-5 and was refused while a 1-3 coupling at dBIC -92.6 was named.
+# trades against the base mass (together they set the base resonance), and a true base
+# with a strong BIC drop and held-out gain has had 1/k_b within one error of 0 (refused
+# by the Wald test while a weaker coupling was named). See docs/method/diagnosis.md.
 LIKELIHOOD_RATIO = ("secondary_oscillator", "base_flexibility")
 
 # Families whose effect can be placed at any frequency (an appendage's own resonance): they
 # keep the held-out 20 % cut even where the shoulders are at their noise (held_out_ok).
 ANYWHERE = ("secondary_oscillator",)
 # ... unless the fitted points prove them this strongly (scaled BIC drop) with the held-out
-# points no worse. In 40 retired null and ordinary-change cases (seeds 83439, 864644, 940295,
-# 886679, 146094; rerun at 8efe45f with their logs) the strongest appendage candidate reached
-# -95.7 (refused as one reshaped peak), the strongest refused by the 20 % cut alone -17.1.
-# Retired 65424/13 (a 0.05 appendage at floor 1) reached -408 in the widened look, where its
-# 3x windows leave few held-out points to cut (1.34 -> 1.20), and was refused.
+# points no worse. In 40 earlier null and ordinary-change benchmark cases the strongest appendage
+# candidate reached about half of it (-95.7, refused as one reshaped peak), the strongest
+# refused by the 20 % cut alone -17.1; a true appendage reached twice it in the widened
+# look, where 3x windows leave few held-out points to cut. See docs/method/diagnosis.md.
 STRONG_BIC = 200.0
 
 
@@ -159,14 +156,14 @@ def held_out_ok(held, ref_held, family=None, delta_bic=0.0):
     (HELD_OUT_GAIN), or, where the reference explains those points to within their noise
     already (at most HELD_OUT_FLOOR, the top of the band that null cases' fits reach), it
     leaves them no worse. A 20 % cut below the noise is out of any candidate's reach: a
-    flexible base under a found added mass at dBIC -143.8 lowered them 1.08 -> 0.99 and was
-    refused (retired 65424/48); the evidence there is the fitted points' (BIC, significance).
+    flexible base under a found added mass at a strong BIC drop lowered them by 8 % and was
+    refused; the evidence there is the fitted points' (BIC, significance).
     An appendage keeps the 20 % cut: its resonance can sit on any bin and soak up a local
-    excursion of the estimate, and in 48 retired null and ordinary-change cases (seeds
-    482662, 65424, 501037, 214992) every candidate with a scaled BIC drop of 10 or more
-    was an appendage, three of them with the held-out chi-square no worse. Unless its
+    excursion of the estimate, and in 48 earlier null and ordinary-change benchmark cases every
+    candidate with a scaled BIC drop of 10 or more was an appendage, three of them with
+    the held-out chi-square no worse (see docs/method/diagnosis.md). Unless its
     scaled BIC drop (``delta_bic``, negative) is STRONG_BIC or more with the held-out points
-    no worse: in retired nulls no local excursion reached that (STRONG_BIC).
+    no worse: in those nulls no local excursion reached that (STRONG_BIC).
     """
     if held <= HELD_OUT_GAIN * ref_held:
         return True
@@ -184,8 +181,8 @@ def held_out_excess(results, n_held):
     results : dicts with "held_out", the mean squared normalised residual on the n_held
     held-out residuals (shoulders never fitted). The held-out points are data the fit
     did not use, so two candidates that fit the windows alike can still be told apart
-    there (blind case 886679/14: an appendage and a flexible base 2.3 apart in BIC, held-out
-    1.29 against 4.05 on 1,960 points).
+    there (an appendage and a flexible base within a tie in BIC have differed threefold in
+    held-out chi-square on some 2,000 points; see docs/method/diagnosis.md).
     """
     if not results:
         return

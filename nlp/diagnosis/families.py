@@ -13,10 +13,13 @@ The same CasADi FRF and NLP (:mod:`nlp.solve.problem`) then fit them. Floors are
 numbered 1..n from the ground up in names and locations; 0 is the ground.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import casadi as ca
+import numpy as np
+
+from nlp.model.parameters import Parameter
 
 __all__ = ["FAMILIES", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
            "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay"]
@@ -136,8 +139,8 @@ class SecondaryOscillator:
     def starts(self, ref):
         """A light, lightly damped appendage tuned to each unexplained resonance inside
         the frequency box: the scan's best frequency is a first-order guess, and a refit
-        from there can stop in a broad, heavily damped minimum (retired 84960/13: f_s
-        8.17 Hz, zeta_s 0.14, against a true 9.15 Hz where the data peak at 9.52 Hz)."""
+        from there can stop in a broad, heavily damped minimum (a tenth below the true
+        frequency with a damping ratio of 0.14; see docs/method/diagnosis.md)."""
         return [[0.01, f, 0.02] for f in sorted(set(self.resonances))
                 if 0.5 * self.f0 < f < 2.0 * self.f0 and abs(f / self.f0 - 1.0) > 0.02]
 
@@ -231,8 +234,8 @@ class NonadjacentCoupling:
 
     def spec(self, ref):
         # a brace over two stories can be as stiff as a story or more: an upper bound of half
-        # a story held the largest blind couplings on it (retired 799498/29: k13 at 0.5 k_ref,
-        # dBIC -912,609, held-out 839 -> 1.25, refused for lying on its bound)
+        # a story held the largest benchmark couplings on it, refused for lying on their
+        # bound however strong their evidence (see docs/method/diagnosis.md)
         k = ref["k_ref"]
         return {"initial": [0.0], "lower": [-0.5 * k], "upper": [2.0 * k], "scale": [0.05 * k],
                 "null": [0.0]}
@@ -298,10 +301,6 @@ def extend_parameters(params, enrichments, ref, values=None):
     values : optional start values, one list per enrichment (default: the
     family's initial guess).
     """
-    from dataclasses import replace
-
-    from nlp.model.parameters import Parameter
-
     extra = []
     for k, e in enumerate(enrichments):
         sp = e.spec(ref)
@@ -314,8 +313,6 @@ def extend_parameters(params, enrichments, ref, values=None):
 
 def references(model, damping_C0):
     """Reference magnitudes the families scale by: mean floor mass, story stiffness, damping."""
-    import numpy as np
-
     return {"m_ref": float(np.mean(np.diag(model.M0))),
             "k_ref": float(np.mean(model.alpha_nominal)) if np.all(model.alpha_nominal != 1.0)
             else float(np.mean(np.diag(model.K0))),

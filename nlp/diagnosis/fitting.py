@@ -13,6 +13,7 @@ import numpy as np
 from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
 from nlp.diagnosis.families import extend_parameters, references
+from nlp.errors import SearchFailed
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
 from nlp.diagnosis.evidence import quasi_covariance
@@ -26,14 +27,15 @@ def noise_sigma(case, idx):
 
 
 # ------------------------------------------------------------------ problems
-def _target(case, idx, sigma):
+def fit_target(case, idx, sigma):
+    """The case's target at points idx, each residual divided by its noise level sigma."""
     tg = case.target
     return Target(omega=2 * np.pi * case.f[idx], H=case.H[:, idx], weight=1.0 / sigma,
                   channels=tg.channels, excitation=tg.excitation, force_dof=tg.force_dof,
                   ground_r=tg.ground_r, kernel=tg.kernel)
 
 
-def _problem(case, target, enrichments=(), values=None, compile=True, optimize=True,
+def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, optimize=True,
              damping=None, max_iter=None, residual=None):
     """The updating NLP; optimize=False compiles quicker, slower-running C (a refit).
 
@@ -44,7 +46,7 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
     residual : optional residual form in place of the case's (the loss check's complex refit).
     """
     cfg = case.config
-    refs = _refs(case)
+    refs = case_references(case)
     damping, base_params = damping if damping is not None else (case.damping, case.params)
     params = extend_parameters(base_params, enrichments, refs, values)
     options = dict(cfg.solver.options)
@@ -57,14 +59,15 @@ def _problem(case, target, enrichments=(), values=None, compile=True, optimize=T
     pr = UpdatingProblem(case.model, damping, params, target, residual=residual,
                          solver=solver, total_mass=cfg.parameters.total_mass,
                          enrichments=enrichments, refs=refs)
-    # a capped refit bounds its optimum and is continued when adopted (_continue_refit);
+    # a capped refit bounds its optimum and is continued when adopted (refit.continue_refit);
     # Newton steps from wherever each of its starts stopped cost more than the cap saves
-    # (retired 832173/44: minutes per round on a 2,700-residual, 27-parameter refit)
+    # (minutes per round on a refit of a few thousand residuals and some 30 parameters;
+    # see docs/method/diagnosis.md)
     pr.polish_unconverged = max_iter is None
     return pr
 
 
-def _normalised(problem, z, case, idx, sigma):
+def normalised(problem, z, case, idx, sigma):
     """Residuals over noise: ln|Ha/Hx|, or |ln(Ha/Hx)| / sqrt(2) when phase is fitted."""
     if len(idx) == 0:   # windows widened over the whole band leave no held-out shoulder
         return np.zeros((len(case.channels), 0))
@@ -91,12 +94,11 @@ class _Kept:
         pass
 
 
-def _search(problem, config, setup=None):
+def scatter_best(problem, config, setup=None):
     """Scatter search; (best result, converged). When no start converged (a solver that
     crawls along a weakly determined direction until its iteration limit), the lowest
     objective reached is used, as every f is a true evaluation at a feasible point, and
     converged is False (diagnosis.json says so)."""
-    from nlp.errors import SearchFailed
     kept = _Kept()
     try:
         return scatter_search(problem, config, progress=None, checkpoint=kept,
@@ -108,7 +110,8 @@ def _search(problem, config, setup=None):
         return min(finite, key=lambda r: r.f), False
 
 
-def _fit(problem, z0_list):
+def best_fit(problem, z0_list):
+    """The lowest-objective local solve of problem from the starts z0_list."""
     best = None
     for z0 in z0_list:
         r = problem.solve(z0)
@@ -117,11 +120,12 @@ def _fit(problem, z0_list):
     return best
 
 
-def _refs(case):
+def case_references(case):
+    """Reference values of the added physics (nlp.diagnosis.families.references) for case."""
     return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 
 
-def _signed(problem, z, case, idx, sigma):
+def signed(problem, z, case, idx, sigma):
     """Signed residuals over noise, the objective's own (nlp/problem.py): (n_ch, n) of
     ln|Ha/Hx| / sigma, or with the phase (2 n_ch, n) of the real and imaginary parts of
     (Ha - Hx) / |Hx| / sigma. Their sum of squares is the chi-square (2 x objective)."""
@@ -133,7 +137,7 @@ def _signed(problem, z, case, idx, sigma):
     return np.log(np.abs(Ha / Hx)) / sigma
 
 
-def _quasi_se(pr, z, free=None):
+def quasi_se(pr, z, free=None):
     """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood).
 
     free : optional boolean mask of the decision variables the solve left free (the
@@ -148,7 +152,7 @@ def _quasi_se(pr, z, free=None):
     return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
 
 
-def _windows(cfg, case, mult):
+def fit_windows(cfg, case, mult):
     """Points within mult x k half-power bandwidths of the peaks."""
     if mult == 1:
         return case.selected
@@ -156,3 +160,38 @@ def _windows(cfg, case, mult):
     idx = np.asarray(half_power_points(c, case.f, case.H, case.channels, case.target.excitation,
                                  case.coherence, case.noise.detect), int)
     return idx[case.f[idx] > 0]
+
+
+def with_values(pr, z_cur, values):
+    """Decision vector: the current model's, then the new enrichment's parameters."""
+    k = len(values)
+    theta = pr.theta(np.concatenate([z_cur, np.zeros(pr.params.n_z - z_cur.size)]))
+    theta[-k:] = values
+    return np.concatenate([z_cur, pr.params.z_from_theta(theta)[z_cur.size:]])
+
+
+def window_bands(f_idx):
+    """Contiguous groups of fitted points: one band per half-power window."""
+    groups, start = [], 0
+    for k in range(1, len(f_idx) + 1):
+        if k == len(f_idx) or f_idx[k] - f_idx[k - 1] > 1:
+            groups.append(np.arange(start, k))
+            start = k
+    return groups
+
+
+def residual_map(case, problem, z, fit, held, sig_fit, sig_held):
+    """Mean squared normalised residual per channel and fitted window, and on the held-out
+    points within 3 window widths of it; returns (cells, fitted residuals, held-out ones)."""
+    rf = normalised(problem, z, case, fit, sig_fit)
+    rh = normalised(problem, z, case, held, sig_held)
+    cells = []
+    for b, g in enumerate(window_bands(fit)):
+        lo, hi = case.f[fit[g[0]]], case.f[fit[g[-1]]]
+        width = hi - lo
+        near = (case.f[held] >= lo - 3 * width) & (case.f[held] <= hi + 3 * width)
+        for c, ch in enumerate(case.channels):
+            cells.append({"channel": ch.name, "band_hz": [float(lo), float(hi)],
+                          "fitted": float(np.mean(rf[c, g] ** 2)),
+                          "held_out": float(np.mean(rh[c, near] ** 2)) if near.any() else None})
+    return cells, rf, rh

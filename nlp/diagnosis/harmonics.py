@@ -13,8 +13,8 @@ fixed by the story. Above the last mode G is close to the mass line, so the floo
 on either side of the element respond in opposite directions and the others hardly
 at all; a single equivalent stiffness per level cannot say this (its change is
 spread over the stories that move each mode, and on one-segment chirps the
-score test of :func:`nlp.diagnosis.levels._level_location` put a contact one story off on
-blind seed 500199).
+score test of :func:`nlp.diagnosis.levels.level_location` has put a contact one story
+off; see docs/method/diagnosis.md).
 
 Each channel is whitened by its noise level out of band (the median power over
 those bins / ln 2: the bins hold noise except for the harmonics). For each story

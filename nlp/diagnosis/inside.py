@@ -10,21 +10,44 @@ import math
 
 import numpy as np
 
-from nlp.diagnosis.fitting import _fit, _problem, _quasi_se
+from nlp.case.parameters import dashpot_damping
+from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
+from nlp.diagnosis.priors import (damper_check, decompose_damping, floor_of_mass, prior_check,
+                                  prior_sigmas)
+from nlp.model.damping import GeneralDamping
+
+# An absorbed added mass is pointed at by its fitted floor mass: more than this relative
+# change, 3 standard errors and 2 prior sigmas; an absorbed damper by its story's damping
+# per unit stiffness over this multiple of the other stories' median.
+ABSORBED_MASS, ABSORBED_MASS_Z, ABSORBED_PRIOR_Z = 0.05, 3, 2
+ABSORBED_DAMPER_RATIO = 2
 
 
-def _inside_model_class(cfg, case, state, absorbed, log):
+def inside_model_class(cfg, case, state, absorbed, log):
     """Parameters far outside their prior, concentrated dampers in the fitted C, and
     the absorbed candidates that the fitted parameters actually point at."""
-    from nlp.model.damping import GeneralDamping
-    from nlp.diagnosis.priors import damper_check, floor_of_mass, prior_check, prior_sigmas
     pr, z = state["problem"], state["z"]
-    se, cov = _quasi_se(pr, z)
+    se, _ = quasi_se(pr, z)
     theta = pr.theta(z)
     sigmas = prior_sigmas(cfg.parameters.prior, pr.params)
     outside = prior_check(pr.params, theta, se, sigmas)
-    findings, changes = [], []
     shear = cfg.model.type == "shear_frame"
+    findings, changes = _prior_findings(outside, shear)
+    decomposition, dampers = _damping_decomposition(case, state, shear, log)
+    findings += [_damper_finding(d) for d in dampers]
+    ratios = decomposition["story_ratio_c_over_k"] if decomposition else None
+    informative = _absorbed_indicated(pr, theta, se, sigmas, ratios, absorbed)
+    if outside:
+        log("  outside the prior: " + ", ".join(f"{o['parameter']} {o['z_prior']:+.1f} sigma"
+                                               for o in outside))
+    return {"findings": findings, "parameter_changes": changes, "damping": decomposition,
+            "absorbed": informative, "parameters": _parameter_table(pr, theta, se, sigmas)}
+
+
+def _prior_findings(outside, shear):
+    """Floor masses above their prior (added masses, on a shear frame), and the other
+    parameters outside their prior (changes of the modelled parameters)."""
+    findings, changes = [], []
     for o in outside:
         floor = floor_of_mass(o["parameter"]) if shear and o["group"] == "mass" else None
         dv = o["value"] - o["nominal"]
@@ -45,9 +68,15 @@ def _inside_model_class(cfg, case, state, absorbed, log):
                               f"{o['z_prior']:+.1f} prior sigmas): a change of the modelled "
                               "parameter, not missing physics.")
             changes.append(o)
+    return findings, changes
+
+
+def _damping_decomposition(case, state, shear, log):
+    """The fitted general C as a0 M + story dashpots (judged on the structured refit when
+    it fits as well): (decomposition, concentrated dampers)."""
     decomposition, dampers = None, []
     if isinstance(case.damping, GeneralDamping) and shear:
-        structured = _dashpot_refit(case, state)
+        structured = dashpot_refit(case, state)
         if structured["fits"]:
             decomposition, dampers = damper_check(structured["problem"], structured["z"],
                                                   structured["cov"])
@@ -59,12 +88,15 @@ def _inside_model_class(cfg, case, state, absorbed, log):
             f"{structured['chi2_general']:.1f} with a general C (scaled excess "
             f"{structured['excess']:.1f}, limit {structured['limit']:.1f}): "
             + ("dampers judged on it" if structured["fits"] else "no damper is judged"))
-    for d in dampers:
-        s = d["story"]
-        name = f"c{s - 1}{s}"
-        where = "the ground" if s == 1 else f"floor {s - 1}"
-        findings.append({
-            "physics": "local_damper", "location": {"between": [s - 1, s]},
+    return decomposition, dampers
+
+
+def _damper_finding(d):
+    """A concentrated damper of priors.damper_check as a finding."""
+    s = d["story"]
+    name = f"c{s - 1}{s}"
+    where = "the ground" if s == 1 else f"floor {s - 1}"
+    return {"physics": "local_damper", "location": {"between": [s - 1, s]},
             "parameters": {name: d["excess"]}, "uncertainty": {name: d["standard_error"]},
             "evidence": {"source": "damping_decomposition", "ratio_to_other_stories": d["ratio"],
                          "modal_share": d["modal_share"]},
@@ -73,12 +105,15 @@ def _inside_model_class(cfg, case, state, absorbed, log):
                           f"and floor {s} beyond the share of the other stories "
                           f"({d['ratio']:.1f}x their damping per unit stiffness; as a damping "
                           f"ratio of its story it is {d['story_zeta_ratio']:.1f}x the median modal "
-                          f"damping of the structure without it, and it supplies {100 * d['modal_share']:.0f} % "
-                          "of one mode's damping).")})
-    # absorbed candidates, kept only where the fitted parameters point at them
+                          f"damping of the structure without it, and it supplies "
+                          f"{100 * d['modal_share']:.0f} % of one mode's damping).")}
+
+
+def _absorbed_indicated(pr, theta, se, sigmas, ratios, absorbed):
+    """Absorbed candidates, kept only where the fitted parameters point at them: a floor
+    mass well above nominal, or a story carrying far more damping than the others."""
     names = pr.params.names
     fixed = {p.name for p in pr.params.params if p.fixed}
-    ratios = decomposition["story_ratio_c_over_k"] if decomposition else None
     informative = []
     for e, kept in absorbed:
         ind = None
@@ -88,21 +123,24 @@ def _inside_model_class(cfg, case, state, absorbed, log):
                 i = names.index(nm)
                 d, sd = float(theta[i]), float(se[i])
                 zp = d / sigmas[nm] if nm in sigmas else None
-                if d > 0.05 and d > 3 * sd and (zp is None or zp > 2):
+                if d > ABSORBED_MASS and d > ABSORBED_MASS_Z * sd and (
+                        zp is None or zp > ABSORBED_PRIOR_Z):
                     ind = (f"m{e.floor} is {100 * d:+.1f} +- {100 * sd:.1f} % of nominal"
                            + (f" ({zp:+.1f} prior sigmas)" if zp is not None else ""))
         elif e.family == "local_damper" and ratios is not None and e.j == e.i - 1:
             others = np.delete(np.asarray(ratios), e.i - 1)
             ref = float(np.median(others)) if others.size else 0.0
-            if ref > 0 and ratios[e.i - 1] > 2 * ref:
+            if ref > 0 and ratios[e.i - 1] > ABSORBED_DAMPER_RATIO * ref:
                 ind = (f"story {e.i} carries {ratios[e.i - 1] / ref:.1f}x the damping per unit "
                        "stiffness of the others in the fitted C")
         if ind:
             informative.append({"physics": e.family, "location": e.location,
                                 "fraction_left": kept, "indicator": ind})
-    if outside:
-        log("  outside the prior: " + ", ".join(f"{o['parameter']} {o['z_prior']:+.1f} sigma"
-                                               for o in outside))
+    return informative
+
+
+def _parameter_table(pr, theta, se, sigmas):
+    """Every free mass and stiffness: value, relative change, error, prior z-score."""
     table = []
     for i, p in enumerate(pr.params.params):
         if p.fixed or p.group not in ("mass", "stiffness"):
@@ -111,25 +149,25 @@ def _inside_model_class(cfg, case, state, absorbed, log):
         table.append({"parameter": p.name, "group": p.group, "nominal": p.nominal,
                       "value": p.nominal * (1 + d), "relative_change": d, "standard_error": sd,
                       "prior_sigma": sg, "z_prior": d / sg if sg else None})
-    return {"findings": findings, "parameter_changes": changes, "damping": decomposition,
-            "absorbed": informative, "parameters": table}
+    return table
 
 
-def _dashpot_refit(case, state):
-    """The current model refitted with C = a0 M + story dashpots (:func:`nlp.case.parameters.dashpot_damping`).
+def dashpot_refit(case, state):
+    """The current model refitted with C = a0 M + story dashpots
+    (:func:`nlp.case.parameters.dashpot_damping`).
 
     A general C has n (n + 1) / 2 parameters, and a decomposition of its point estimate
-    carries all their scatter (blind seed 601329: five true dampers missed, two nulls'
-    random dashpots called dampers). When the structured C fits as well (its chi-square
-    excess, scaled by the remaining misfit, is below the difference in parameters times
-    ln N, as in BIC), its story dashpots are estimated directly, with their own errors.
-    Starts: the non-negative decomposition of the fitted general C, and Rayleigh.
+    carries all their scatter (on the benchmark, true dampers were missed and null cases'
+    random dashpots called dampers; see docs/method/diagnosis.md). When the structured C
+    fits as well (its chi-square excess, scaled by the remaining misfit, is below the
+    difference in parameters times ln N, as in BIC), its story dashpots are estimated
+    directly, with their own errors. Starts: the non-negative decomposition of the
+    fitted general C, and Rayleigh.
     """
-    from nlp.case.parameters import dashpot_damping
-    from nlp.diagnosis.priors import decompose_damping
     pr, z = state["problem"], state["z"]
     damping, params = dashpot_damping(case)
-    pd = _problem(case, pr.target, state["current"], optimize=False, damping=(damping, params))
+    pd = diagnosis_problem(case, pr.target, state["current"], optimize=False,
+                           damping=(damping, params))
     theta = pr.theta(z)
     sa, sb, _ = pr.params.slices()
     M, _, C = pr.matrices(z)
@@ -147,17 +185,18 @@ def _dashpot_refit(case, state):
         t[sd] = d
         t[pd.params.physics_slice()] = theta[pr.params.physics_slice()]
         starts.append(pd.params.z_from_theta(t))
-    res = _fit(pd, starts)
+    res = best_fit(pd, starts)
     nu = max(pr.n_used - pr.params.n_z, 1)
     phi = max(state["chi"] / nu, 1.0)
     dk = max(pr.params.n_z - pd.params.n_z, 1)
     excess = (2 * res.f - state["chi"]) / phi
-    # BIC: the general C must earn its extra parameters (a one-segment ordinary case of
-    # blind seed 601329, Rayleigh plus story dashpots in truth, gained 64.6 from 9 more: the
-    # 99.9 % point, 27.9, would refuse the true family for misfit that is not damping)
+    # BIC: the general C must earn its extra parameters (a chi-square test's 99.9 % point
+    # would refuse the true structured family for misfit that is not damping: a one-segment
+    # ordinary case with Rayleigh plus story dashpots in truth gained about twice that point
+    # from 9 more parameters; see docs/method/diagnosis.md)
     limit = dk * math.log(max(pr.n_used, 2))
     fits = bool(res.success and np.isfinite(res.f) and excess <= limit)
-    cov = _quasi_se(pd, res.z)[1] if fits else None
+    cov = quasi_se(pd, res.z)[1] if fits else None
     return {"problem": pd, "z": res.z, "cov": cov, "chi2": float(2 * res.f),
             "chi2_general": float(state["chi"]), "excess": float(excess), "limit": limit,
             "fits": fits}

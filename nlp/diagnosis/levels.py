@@ -9,32 +9,36 @@ from dataclasses import replace
 import math
 
 import numpy as np
+from scipy.linalg import null_space
 
 from nlp.case.assemble import assemble
-from nlp.case.selection import half_power_points
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
+                                   noise_sigma, normalised, quasi_se, scatter_best)
+from nlp.diagnosis.harmonics import harmonic_location, story_vectors
+from nlp.frf.reference import modal_parameters
 from nlp.solve.search import SearchConfig
-from nlp.diagnosis.fitting import _fit, _normalised, _problem, _quasi_se, _search, _target, noise_sigma
+
+LEVEL_STARTS = 6   # scatter-search starts of each level's equivalent linear fit
 
 
-def _level_fit(cfg, path, z_start=None):
+def level_fit(cfg, path, z_start=None):
     """Baseline fit to one test level: story stiffnesses with standard errors, modes.
 
     Several starts (a short scatter search, plus z_start: another level's
     optimum), so that the equivalent model of a level is not a local minimum
     or stuck on a bound.
     """
-    from nlp.frf.reference import modal_parameters
     c = assemble(cfg, data_file=path)
     sig = noise_sigma(c, c.selected)
-    tg = _target(c, c.selected, sig)
-    pr = _problem(c, tg)
-    res, _ = _search(pr, SearchConfig(starts=6, seed=cfg.search.seed))
+    tg = fit_target(c, c.selected, sig)
+    pr = diagnosis_problem(c, tg)
+    res, _ = scatter_best(pr, SearchConfig(starts=LEVEL_STARTS, seed=cfg.search.seed))
     if z_start is not None:
         alt = pr.solve(z_start)
         if alt.f < res.f:
             res = alt
     theta = pr.theta(res.z)
-    se = _quasi_se(pr, res.z)[0]
+    se = quasi_se(pr, res.z)[0]
     sa, _, _ = pr.params.slices()
     nom = c.model.alpha_nominal
     lo, hi = pr.bounds
@@ -52,7 +56,7 @@ def _z_column(pr, i):
     return int(np.argmax(np.abs(row))) if np.any(row != 0) else None
 
 
-def _level_location(ref, lv):
+def level_location(ref, lv):
     """Story whose stiffness change best explains the other level's data.
 
     Score test at the reference level's model on the other level's data: each
@@ -79,7 +83,7 @@ def _level_location(ref, lv):
     return int(np.argmax(scores)), scores
 
 
-def _shared_stiffness(ref, lv):
+def shared_stiffness(ref, lv):
     """Do the two levels need masses and stiffnesses of their own? Likelihood ratio.
 
     A level's data fitted again with its masses and stiffnesses held at a common set
@@ -93,10 +97,11 @@ def _shared_stiffness(ref, lv):
     the held parameters (their number times ln N).
 
     The other level's rise alone, the test until 94de9ab, also carries the reference
-    level's own error: a chirp null at two levels (retired 251552/52) rose 72.6 against
-    a price of 37.5. Two separate fits compared by their standard errors cannot replace
-    the refits where one level determines a story poorly (blind 601329/44, a contact of
-    0.2: story 3 at +27 % but 145,000 N/m of error at the high level, 0.0 standard errors).
+    level's own error: on a linear (null) chirp case at two levels it rose to about twice
+    the price. Two separate fits compared by their standard errors cannot replace the
+    refits where one level determines a story poorly (a contact whose story stiffness
+    changed by a quarter came out at 0.0 standard errors, its error at the high level
+    far above the stiffness; see docs/method/diagnosis.md).
     """
     res, pr, params = _shared_fit(ref, lv)
     # far from the level's own optimum the damping-only fit can stop at the iteration
@@ -121,9 +126,10 @@ def _shared_stiffness(ref, lv):
         bounds = _bounds(chi, own, phi)
         least = min(v for v, _ in bounds.values())
         # the weighted set linearises at the two optima; Gauss-Newton steps on the summed
-        # chi-square (damping profiled out) tighten the bound where it decides (retired
-        # 251552/52, a null: 43.3 at the weighted set against a price of 37.5). Far above
-        # the price the steps cannot change the decision and would cost minutes
+        # chi-square (damping profiled out) tighten the bound where it decides (a null case
+        # has come out just above the price at the weighted set; see
+        # docs/method/diagnosis.md). Far above the price the steps cannot change the
+        # decision and would cost minutes
         if step == JOINT_STEPS or not limit < least < JOINT_BAND * limit:
             break
         if base is None or bounds[key][0] < bounds[base[0]][0]:
@@ -147,8 +153,8 @@ JOINT_BAND = 3.0    # ... taken while the least bound is between the price and 3
 
 def _bounds(chi, own, phi):
     """{common set: (summed scaled rise, converged)}. A held refit below a level's own fit
-    shows that fit was a local minimum (retired 501037/41: the reference data fitted 58
-    lower at the other level's set), so rises count from the least chi-square known."""
+    shows that fit was a local minimum (the reference data have fitted lower at the other
+    level's set than at their own optimum), so rises count from the least chi-square known."""
     best = {L: min([own[L]] + [c[L][0] for c in chi.values()]) for L in own}
     return {key: (sum((c[L][0] - best[L]) / phi[L] for L in c), all(ok for _, ok in c.values()))
             for key, c in chi.items()}
@@ -185,7 +191,6 @@ def _joint_step(fit, theta, g, H):
     G = pr.constraint_jacobian()
     N = np.eye(len(jh))
     if G.size:
-        from scipy.linalg import null_space
         N = null_space(G[:, jh])
     step = N @ np.linalg.lstsq(N.T @ H @ N, -(N.T @ g), rcond=None)[0]
     z = pr.params.z_from_theta(theta)
@@ -220,7 +225,7 @@ def _held_covariance(fit):
     """Quasi-likelihood covariance of the free masses and stiffnesses (relative, Eqns
     23-24) of one level's fit, and their indices in theta."""
     pr = fit["problem"]
-    _, cov = _quasi_se(pr, fit["z"])
+    _, cov = quasi_se(pr, fit["z"])
     S = pr.params.T @ cov @ pr.params.T.T
     sa, sb, _ = pr.params.slices()
     idx = [i for i in range(sa.start, sb.stop) if not pr.params.params[i].fixed]
@@ -267,20 +272,20 @@ def _shared_fit(ref, lv, release=None, theta_start=None, theta_held=None):
         replace(p, fixed=True, initial=float(theta_r[i])) if i in held and not p.fixed else p
         for i, p in enumerate(pr_l.params.params)))
     c = lv["case"]
-    pr = _problem(c, pr_l.target, optimize=False, damping=(c.damping, params))
+    pr = diagnosis_problem(c, pr_l.target, optimize=False, damping=(c.damping, params))
     # starts: the level's own damping, and the reference level's (and a given optimum)
     starts = [params.z_from_theta(pr_l.theta(lv["z"])), params.z_from_theta(theta_r)]
     if theta_start is not None:
         starts.insert(0, params.z_from_theta(theta_start))
-    return _fit(pr, starts), pr, params
+    return best_fit(pr, starts), pr, params
 
 
-def _release_location(ref, lv, lr):
+def release_location(ref, lv, lr):
     """Story whose stiffness alone, left free at the other level, explains most of what the
     shared masses and stiffnesses do not: the chi-square drop of each such refit, scaled
     by the level's remaining misfit (a likelihood ratio, one parameter each). The score
-    test linearises at the reference model; on blind 824513/42 (a cubic story-1 spring
-    of 6 %, Welch) it named story 4."""
+    test linearises at the reference model, and has named a story far from a weak cubic
+    spring's (see docs/method/diagnosis.md)."""
     sa, _, _ = lv["problem"].params.slices()
     drops = []
     for i in range(sa.stop - sa.start):
@@ -289,14 +294,14 @@ def _release_location(ref, lv, lr):
             continue
         res, pr, _ = _shared_fit(ref, lv, release=i, theta_start=np.asarray(lr["theta"]))
         # an unconverged drop is only a lower bound and blocks the decision: continue it
-        # from where it stopped (retired 408154/42, a contact at story 4: story 2's refit
-        # stopped at 39 against story 4's 173, so the score test named story 2)
+        # from where it stopped (an unconverged refit of a wrong story has stopped ahead
+        # of the true story's, so the score test named the wrong one)
         res = _continued(pr, res)
         drops.append((float((lr["chi2_shared"] - 2 * res.f) / lr["phi"]), bool(res.success)))
     return drops
 
 
-def _released_story(drops):
+def released_story(drops):
     """The story of the largest drop, or None when it is not certain: an unconverged refit's
     drop is only a lower bound, so every other story's refit must have converged."""
     best = int(np.argmax([d for d, _ in drops]))
@@ -305,77 +310,100 @@ def _released_story(drops):
     return None
 
 
-def _nonlinearity(cfg, log):
+def nonlinearity(cfg, log):
     """Compare the same model fitted to tests at different excitation levels.
 
     A linear structure has the same masses and stiffnesses at every level: the other
     level's data are fitted as well with the reference level's (damping free) as with
-    their own, within BIC's price of the held parameters (:func:`_shared_stiffness`).
+    their own, within BIC's price of the held parameters (:func:`shared_stiffness`).
     When they are not, the structure is level-dependent (nonlinear); the story is the
     one whose stiffness, freed alone, explains most of the other level's data
-    (:func:`_release_location`; the out-of-band harmonics decide instead when they can),
+    (:func:`release_location`; the out-of-band harmonics decide instead when they can),
     and the equivalent stiffness and modal damping at each level are reported, with the
-    z-scores of the two separate fits.
+    z-scores of the two separate fits. None without level files.
     """
     if not cfg.data.level_files:
         return None
-    ref = _level_fit(cfg, cfg.data.file)
-    fits = [ref] + [_level_fit(cfg, p, ref["z"]) for p in cfg.data.level_files]
+    ref = level_fit(cfg, cfg.data.file)
+    fits = [ref] + [level_fit(cfg, p, ref["z"]) for p in cfg.data.level_files]
+    i, zsc, lv, scores, lr = _most_different_level(ref, fits[1:])
+    harm = _harmonics(cfg, fits)
+    by_harmonics = bool(harm and harm["best"] is not None)
+    located_by = "score test of the equivalent stiffnesses"
+    if by_harmonics:
+        i, located_by = harm["story_index"], "out-of-band harmonics"
+    _log_levels(log, ref, lv, i, zsc, lr, harm)
+    # levels that need stiffnesses of their own (an unconverged shared fit overstates it),
+    # or harmonics of one story's force: a linear structure has no response where it is
+    # not driven
+    by_levels = lr["excess"] > lr["limit"] and lr["converged"]
+    if not by_levels and not by_harmonics:
+        return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
+                "harmonics": harm}
+    release = None
+    if by_levels and not by_harmonics:
+        # the harmonics name the story already; one refit per story costs minutes on a
+        # one-segment record of several storeys (see docs/method/diagnosis.md)
+        release = release_location(ref, lv, lr)
+        j = released_story(release)
+        if j is not None:
+            i, located_by = j, "one story's stiffness freed at the other level"
+        log("  one story's stiffness freed at the other level: chi-square drop (scaled) "
+            + ", ".join(f"{d:.1f}" + ("" if ok else " (unconverged: at least)")
+                        for d, ok in release))
+        release = [{"drop": d, "converged": ok} for d, ok in release]
+    before, after = _other_level_held_out(cfg, ref, lv)
+    finding = _nonlinear_finding(ref, lv, i, zsc, lr, scores, release, located_by, harm,
+                                 (before, after))
+    return {"found": finding, "max_z": float(zsc[i]), "held_out": (before, after),
+            "harmonics": harm, "shared_stiffness": lr}
+
+
+def _most_different_level(ref, others):
+    """The other level whose data the reference level's stiffnesses fit worst (shared-fit
+    excess over its BIC limit): (story by score test, z-scores, level, scores, shared fit)."""
     best = None
-    for lv in fits[1:]:
+    for lv in others:
         zsc = (lv["k"] - ref["k"]) / np.sqrt(lv["k_se"] ** 2 + ref["k_se"] ** 2)
-        i, scores = _level_location(ref, lv)
-        lr = _shared_stiffness(ref, lv)
+        i, scores = level_location(ref, lv)
+        lr = shared_stiffness(ref, lv)
         if best is None or lr["excess"] - lr["limit"] > best[4]["excess"] - best[4]["limit"]:
             best = (i, zsc, lv, scores, lr)
-    i, zsc, lv, scores, lr = best
-    harm = _harmonics(cfg, fits)
-    located_by = "score test of the equivalent stiffnesses"
-    if harm and harm["best"] is not None:
-        i, located_by = harm["story_index"], "out-of-band harmonics"
-    zs = float(zsc[i])
+    return best
+
+
+def _log_levels(log, ref, lv, i, zsc, lr, harm):
     log(f"levels: story {i + 1} stiffness {ref['k'][i]:.1f} -> {lv['k'][i]:.1f} N/m "
-        f"({zs:+.1f} standard errors; largest change {np.max(np.abs(zsc)):.1f}); the other "
-        f"level's data with this level's masses and stiffnesses: chi-square +{lr['rise']:.1f} "
-        f"(scaled); one set for both levels: +{lr['excess']:.1f} (at the {lr['common_set']} "
-        f"set; BIC limit {lr['limit']:.1f})")
+        f"({float(zsc[i]):+.1f} standard errors; largest change {np.max(np.abs(zsc)):.1f}); the "
+        f"other level's data with this level's masses and stiffnesses: chi-square "
+        f"+{lr['rise']:.1f} (scaled); one set for both levels: +{lr['excess']:.1f} (at the "
+        f"{lr['common_set']} set; BIC limit {lr['limit']:.1f})")
     if harm:
         log(f"  out-of-band response: {harm['z_excess']:.1f} noise SDs above the noise over "
             f"{harm['bins']} bins; one force per story explains "
             + ", ".join(f"{100 * s:.0f} %" for s in harm["share"])
             + (f": story {i + 1}" if harm["best"] is not None else ": not decided"))
-    # levels that need stiffnesses of their own (an unconverged shared fit overstates it),
-    # or harmonics of one story's force: a linear structure has no response where it is
-    # not driven
-    by_levels = lr["excess"] > lr["limit"] and lr["converged"]
-    if not by_levels and not (harm and harm["best"] is not None):
-        return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
-                "harmonics": harm}
-    release = None
-    if by_levels and not (harm and harm["best"] is not None):
-        # the harmonics name the story already; one refit per story would cost minutes on a
-        # one-segment 5-storey record (blind 500199/44: 464 s)
-        release = _release_location(ref, lv, lr)
-        j = _released_story(release)
-        if not (harm and harm["best"] is not None) and j is not None:
-            i, located_by = j, "one story's stiffness freed at the other level"
-            zs = float(zsc[i])
-        log("  one story's stiffness freed at the other level: chi-square drop (scaled) "
-            + ", ".join(f"{d:.1f}" + ("" if ok else " (unconverged: at least)")
-                        for d, ok in release))
-        release = [{"drop": d, "converged": ok} for d, ok in release]
-    # held-out check on the other level: its own equivalent model against the reference one
+
+
+def _other_level_held_out(cfg, ref, lv):
+    """Held-out check on the other level: mean z^2 on its shoulders (windows 3x wider,
+    not fitted) of the reference level's model and of its own equivalent model."""
     c = lv["case"]
-    cfg3 = replace(cfg, frequencies=replace(cfg.frequencies, k=3 * cfg.frequencies.k))
-    wide = np.asarray(half_power_points(cfg3, c.f, c.H, c.channels, c.target.excitation, c.coherence,
-                                  c.noise.detect), int)
-    held = np.setdiff1d(wide[c.f[wide] > 0], c.selected)
+    held = np.setdiff1d(fit_windows(cfg, c, 3), c.selected)
     sig = noise_sigma(c, held)
-    before = float(np.mean(_normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
-    after = float(np.mean(_normalised(lv["problem"], lv["z"], c, held, sig) ** 2))
+    before = float(np.mean(normalised(ref["problem"], ref["z"], c, held, sig) ** 2))
+    after = float(np.mean(normalised(lv["problem"], lv["z"], c, held, sig) ** 2))
+    return before, after
+
+
+def _nonlinear_finding(ref, lv, i, zsc, lr, scores, release, located_by, harm, held_out):
+    """The nonlinearity finding at story i + 1: each level's equivalent stiffness and
+    modal damping, and the evidence that places it."""
+    zs = float(zsc[i])
     rel = float(lv["k"][i] / ref["k"][i] - 1)
     shift = [float(100 * (b / a - 1)) for a, b in zip(ref["f"], lv["f"])]
-    finding = {
+    before, after = held_out
+    return {
         "physics": "nonlinearity", "location": {"between": [i, i + 1]},
         "parameters": {f"k{i + 1}_level1": float(ref["k"][i]), f"k{i + 1}_level2": float(lv["k"][i]),
                        "relative_change": rel,
@@ -391,8 +419,6 @@ def _nonlinearity(cfg, log):
                      "held_out_chi2_other_level": {"level1_model": before, "level2_model": after}},
         "statement": _nonlinear_statement(i, rel, zs, shift, harm),
     }
-    return {"found": finding, "max_z": zs, "held_out": (before, after), "harmonics": harm,
-            "shared_stiffness": lr}
 
 
 def _nonlinear_statement(i, rel, zs, shift, harm):
@@ -401,8 +427,8 @@ def _nonlinear_statement(i, rel, zs, shift, harm):
     tail = "A level-dependent equivalent linear model is given for each level."
     if harm and harm["best"] is not None:
         # one equivalent stiffness per level can move the wrong way on a strongly nonlinear
-        # chirp record (blind 500199/43: a stiffening spring at -10.6 %, -2.7 SE), so the
-        # harmonics lead and the stiffness change is only reported
+        # chirp record (a stiffening spring has come out softer by several standard errors;
+        # see docs/method/diagnosis.md), so the harmonics lead and the change is only reported
         share = min(100 * harm["share"][harm["best"]], 100.0)
         return (f"The structure is not linear: modal frequencies shift {shifts} between "
                 f"excitation levels, and the response above the excitation band (harmonics) is "
@@ -417,7 +443,6 @@ def _nonlinear_statement(i, rel, zs, shift, harm):
 def _harmonics(cfg, fits):
     """Out-of-band harmonics of the level tests (:mod:`nlp.diagnosis.harmonics`), located
     on the story patterns of the reference level's model; None without time records."""
-    from nlp.diagnosis.harmonics import harmonic_location, story_vectors
     ref = fits[0]
     if ref["case"].records is None:
         return None

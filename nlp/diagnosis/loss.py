@@ -42,10 +42,10 @@ def band_points(f, mask, sigma_phase, fmax=None, exclude=(), max_points=MAX_POIN
 
     At a resonance the fitted viscous C already gives the mode the loss's damping, so the
     two forms agree there; what the points near a peak do carry is the estimate's own
-    bias (the smoothing by an FRF file's unknown window, leakage). On retired blind null
-    610789/62 (an H1 file without coherence) they made a whole-frame loss of 0.0045 at
-    6.6 standard errors; without them none stands out, while the losses of 0.01-0.07 are
-    found as before.
+    bias (the smoothing by an FRF file's unknown window, leakage). On a null H1 file
+    without coherence they made a small whole-frame loss stand out at 6.6 standard errors;
+    without them none stands out, while the losses of 0.01-0.07 are found as before
+    (see docs/method/diagnosis.md).
 
     Parameters
     ----------

@@ -23,6 +23,7 @@ import math
 import re
 
 import numpy as np
+from scipy.linalg import eigh
 from scipy.optimize import nnls
 
 __all__ = ["PRIOR_OUT", "DAMPER_RATIO", "STORY_ZETA", "DAMPER_SE", "prior_sigmas", "prior_check",
@@ -40,14 +41,12 @@ STORY_ZETA = 1.85    # its excess dashpot, as the damping ratio of its story (c 
                      # python scripts/damper_threshold.py)
 DETERMINED = 6.0     # a parameter outside its prior must also stand this many SE from nominal
 DAMPER_SE = 3.0      # ... and a damper's excess this many from zero. It was DETERMINED (6)
-                     # until seed 482662, from blind seed 24798, where the code of the time
-                     # claimed dampers at 3.2-5.3 SE wrongly 3 of 3 (the n story dashpots of
-                     # a weakly identified general C). Those three cases, regenerated and
-                     # rerun at 49e46be, are refused by the zeta test (ratio 0.88 and 1.07 one
-                     # SE low) or the structured refit at any number of SEs.
-                     # Replayed on 229 stored decompositions of five retired seeds
-                     # (scripts/replay_damper_rule.py): 3 adds two right stories (482662/19
-                     # at 3.1 SE, /46 at 5.0) and no wrong one
+                     # after the code of an earlier time claimed dampers wrongly at 3.2-5.3 SE
+                     # (the n story dashpots of a weakly identified general C); those cases
+                     # are now refused by the zeta test or the structured refit at any number
+                     # of SEs. Replayed on 229 stored decompositions of earlier benchmark
+                     # cases (python scripts/replay_damper_rule.py): 3 adds two right stories
+                     # and no wrong one (see docs/method/diagnosis.md)
 MAX_UNEXPLAINED = 0.3  # a C this far from M + story patterns is not decomposed into dampers
 
 
@@ -136,7 +135,7 @@ def story_stiffness(K):
     return k
 
 
-def _excess(C, M, K, leave_out=None):
+def damping_excess(C, M, K, leave_out=None):
     """Each story's dashpot beyond the proportional share of the other stories (the
     median of their c / k, without the stories of the boolean mask ``leave_out`` while
     any other remains)."""
@@ -166,12 +165,12 @@ def damper_check(problem, z, cov_z):
     a0, c, left = decompose_damping(C, M)
     # a story dashpot pinned at zero by the non-negative fit: the fitted C leaves the family
     # a0 M + story dashpots there. It is no measure of the others' share, and its neighbour
-    # may have taken its damping (blind null 886679/52: c1 = 0 against a true 2.9 N s/m, a0
-    # twice the truth, and story 2 read as a damper 4.8x the others' share at "20 standard
-    # errors"); a damper away from it stands (retired 501037/19: story 3 at 9.7x the others
-    # and 10.6 standard errors, true 28.6 N s/m, fitted 34.0, while story 1 was pinned)
+    # may have taken its damping (on a null case, a pinned story 1 with a0 at twice the
+    # truth made story 2 read as a damper at "20 standard errors"); a damper away from it
+    # stands (a true damper two stories away was found, close to its value, while story 1
+    # was pinned; see docs/method/diagnosis.md)
     pinned = c <= 1e-9 * max(float(np.max(c)), 1e-300)
-    ex, rho, ref, _ = _excess(C, M, K, pinned)
+    ex, rho, ref, _ = damping_excess(C, M, K, pinned)
     lo, hi = problem.bounds
     G = np.zeros((n, z.size))
     for j in range(z.size):
@@ -181,16 +180,16 @@ def damper_check(problem, z, cov_z):
         zm[j] = max(z[j] - h, lo[j]) if np.isfinite(lo[j]) else z[j] - h
         if zp[j] == zm[j]:
             continue
-        G[:, j] = (_excess(*_mck(problem, zp), pinned)[0]
-                   - _excess(*_mck(problem, zm), pinned)[0]) / (zp[j] - zm[j])
+        G[:, j] = (damping_excess(*_mck(problem, zp), pinned)[0]
+                   - damping_excess(*_mck(problem, zm), pinned)[0]) / (zp[j] - zm[j])
     se = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", G, cov_z, G), 0, None))
     info = {"a0": a0, "story_dashpots": c.tolist(), "story_ratio_c_over_k": rho.tolist(),
             "unexplained_fraction": left}
     share = modal_share(M, K, C, ex)
     info["largest_modal_share"] = share.max(axis=1).tolist()
     # the thresholds are met by the excess one standard error below its estimate: a
-    # null's random dashpots can come near them (held-back 601329/53: true share 0.55 and
-    # ratio 4.2, fitted 0.64 +- 0.08), and a point estimate just over them is not a damper
+    # null's random dashpots can come near them (a modal share about 0.1 over its true
+    # value, see docs/method/diagnosis.md), and a point estimate just over them is not a damper
     ex_lo = np.clip(ex - se, 0.0, None)
     share_lo = modal_share(M, K, C, ex_lo).max(axis=1)
     rho_lo = ref + ex_lo / np.maximum(story_stiffness(K), 1e-300)
@@ -222,7 +221,6 @@ def modal_share(M, K, C, excess):
     A story dashpot that supplies more than half of a mode's damping dominates it;
     damping that is merely non-proportional spreads over the stories.
     """
-    from scipy.linalg import eigh
     _, phi = eigh(K, M)
     drift = np.diff(np.vstack([np.zeros((1, phi.shape[1])), phi]), axis=0)  # story drifts
     total = np.einsum("ir,ij,jr->r", phi, 0.5 * (C + C.T), phi)
@@ -237,12 +235,11 @@ def story_damping_ratio(M, K, C, excess, removed=None):
     negative values remove nothing).
 
     The damper is left out of its own yardstick: on a 3-storey frame it can set the median
-    of three modes by itself (blind 832173/18: a dashpot of 2 at 1.01x with it in, while
-    its story supplies 60 % of one mode).
+    of three modes by itself (a dashpot twice its story's share measured 1.01x with it in,
+    while its story supplied 60 % of one mode).
 
     Returns ((n,) ratios [-], (n,) median modal damping ratios of each C' [-]).
     """
-    from scipy.linalg import eigh
     w2, phi = eigh(K, M)
     excess = np.asarray(excess, float)
     removed = excess if removed is None else np.asarray(removed, float)

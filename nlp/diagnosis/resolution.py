@@ -6,17 +6,16 @@ their half-power half-widths (zeta_a f_a + zeta_b f_b: their half-power bands do
 not overlap) and than the resolution of the FRF estimate. Closer, the two merge
 into one peak whose shape the general damping, the
 estimator's window and the noise can also explain: a tiny oscillator tuned onto
-a mode then fits the window's smoothing of that peak, not physics (blind case
-886679/57, an ordinary change: mass ratio 0.0004 tuned 0.1 % below mode 2 of a
-Welch estimate whose peaks are 1.3-6 bins wide). A real appendage of detectable
+a mode then fits the window's smoothing of that peak, not physics (on an ordinary
+change without an appendage, a mass ratio of 0.0004 tuned 0.1 % below a mode of a
+Welch estimate whose peaks are a few bins wide). A real appendage of detectable
 size (mass ratio >= 0.025 within +-25 % of a mode) splits far wider, by about
 f sqrt(mu) where it is tuned onto the mode.
 
 The larger of the two full bandwidths (2 zeta f), used before, refused damped
-appendages whose half-power bands stand apart (retired 83439/50: mu 0.045,
-zeta_s 0.054, its mode 0.648 Hz from the nearest, half-widths 0.419 + 0.200 Hz,
-dBIC -21562 and a held-out misfit 27 times lower than the base flexibility named
-in its place).
+appendages whose half-power bands stand apart (a true appendage with a dBIC in the
+tens of thousands and a held-out misfit 27 times lower than the family named in its
+place; see docs/method/diagnosis.md).
 """
 
 import numpy as np
@@ -75,11 +74,10 @@ def damping_pinned(zeta_s, se, lower):
     """The appendage's fitted damping ratio is determined (its standard error under its
     value) and lies within one standard error of the lower bound of its box: the data
     ask for a line at least as sharp as the model allows. Such a line fits an excursion
-    of the estimate a bin or two wide, not a resonance (retired 83439/50, third round:
-    mu 3.8e-5 at 5.839 Hz, zeta_s 0.00102 +- 0.00033 against the bound 0.001, dBIC
-    -12.4; the appendages offered on 886679/57 and /62 and 83439/12, cases without a
-    resolvable one, sat there too, while the found appendages of 83439/13, /47 and
-    /50 fitted 0.031-0.056, 2.9 to 37 errors above it). A damping the data leave open
+    of the estimate a bin or two wide, not a resonance (on the benchmark, the spurious
+    appendages offered on cases without a resolvable one sat at the bound, while the
+    true ones fitted damping ratios of 0.03-0.06, 3 to 37 errors above it; see
+    docs/method/diagnosis.md). A damping the data leave open
     (error above its value) is a nuisance reported as not determined, and does not
     decide (nlp.diagnosis.evidence.undetermined).
 

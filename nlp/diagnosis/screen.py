@@ -168,10 +168,10 @@ def _first_is_mode_one(case, f_first):
     """Is the lowest resonance found the structure's first mode? It is taken so when it
     lies nearer (in log frequency) the nominal model's mode 1 than its mode 2: the checks
     that rest on the first mode (every floor in phase) are meaningless at mode 2, where
-    the upper floors move against the lower ones. Blind 84960/18, a force at floor 2 with
-    a story 1-2 damper: the coherence of two channels fell below 0.5 around mode 1
-    (1.0 Hz), the coherent band began above it, and the in-phase test read mode 2
-    (2.54 Hz) as three sign-flipped channels."""
+    the upper floors move against the lower ones. When the coherence of some channels
+    falls below the case's limit around mode 1, the coherent band begins above it, and
+    the in-phase test would read mode 2 as sign-flipped channels (see
+    docs/method/diagnosis.md)."""
     w2 = linalg.eigh(case.model.K0, case.model.M0, eigvals_only=True)
     f_nom = np.sqrt(np.clip(np.sort(w2), 0.0, None)) / (2 * np.pi)
     if f_nom.size < 2 or f_nom[0] <= 0:
@@ -237,89 +237,17 @@ def screen(case):
         signs, driving-point channels, anti-resonance counts, shape MAC scores,
         coherence and H1/H2 gaps.
     """
-    cfg = case.config
     names = [ch.name for ch in case.channels]
     floors = [ch.dof + 1 for ch in case.channels]
-    ex = case.target.excitation
-    D = detection_form(case.f, case.H, case.channels, ex)
+    D = detection_form(case.f, case.H, case.channels, case.target.excitation)
     idx = _band(case)
     errors, warnings, checks = [], [], {}
     peaks = resonances(case.f, D, idx, case.model.n + 2) if idx.size > 4 else np.array([], int)
     checks["resonances_hz"] = [float(x) for x in case.f[peaks]]
     if peaks.size >= 1:
-        Q, sig = _quadrature(D, peaks)
-        expected = 1.0 if ex == "force" else -1.0
-        mode_one, f_nom = _first_is_mode_one(case, case.f[peaks[0]])
-        flipped, all_flipped = first_mode_signs(Q, sig, expected) if mode_one else \
-            (np.array([], int), False)
-        checks["first_mode_quadrature_sign"] = dict(zip(names, np.sign(Q[:, 0]).tolist()))
-        if not mode_one:
-            warnings.append({"kind": "first_mode_unseen",
-                             "message": f"the lowest resonance in the coherent band "
-                                        f"({case.f[peaks[0]]:.3g} Hz) lies nearer the nominal "
-                                        f"model's mode 2 ({f_nom[1]:.3g} Hz) than its mode 1 "
-                                        f"({f_nom[0]:.3g} Hz): the sign and channel-order checks, "
-                                        "which need the first mode, were skipped"})
-        if all_flipped:
-            w = {"kind": "phase_convention",
-                 "message": "every channel has the opposite phase at the first resonance: the "
-                            "input's sign or the FRF phase convention is reversed"}
-            (errors if cfg.objective.residual == "complex" else warnings).append(w)
-            Q = -Q
-        elif flipped.size and 2 * flipped.size < sig[:, 0].sum():
-            for c in flipped:
-                errors.append({"kind": "sign_flip", "channel": names[c],
-                               "message": f"channel {names[c]} (floor {floors[c]}) reads with the "
-                                          f"opposite sign: at the first resonance "
-                                          f"({case.f[peaks[0]]:.3g} Hz), where every floor moves in "
-                                          "phase, its phase is offset by pi from the other channels'. "
-                                          "Check the sensor's orientation and wiring (or give the "
-                                          "channel sign: -1)."})
-            Q[flipped] = -Q[flipped]
-        swap = None
-        if peaks.size >= 2 and len(set(floors)) >= 3:
-            Phi = _model_shapes(case, floors, min(case.model.n, peaks.size))
-            base, (best, pair) = swap_test(Phi, Q, floors)
-            checks["shape_mac"] = {"as_labelled": base, "best_exchange": best,
-                                   "exchange": [names[c] for c in pair] if pair else None}
-            if (pair and mode_one and best >= base + MAC_GAIN and best >= MAC_GOOD
-                    and _first_mode_disorder(case, Q, sig, floors, pair)):
-                swap = pair
-                a, b = pair
-                errors.append({"kind": "swapped_channels", "channels": [names[a], names[b]],
-                               "message": f"channels {names[a]} (floor {floors[a]}) and {names[b]} "
-                                          f"(floor {floors[b]}) appear swapped: the measured shapes "
-                                          f"at the resonances match the model's mode shapes with MAC "
-                                          f"{best:.2f} when their data are exchanged, {base:.2f} as "
-                                          "labelled. Check the channel order."})
-        # the force-floor test uses the resonances most channels see clearly (a noise
-        # bump of a one-segment estimate has a random phase on each channel)
-        clear = sig.sum(axis=0) >= max(2, (sig.shape[0] + 1) // 2)
-        if ex == "force" and clear.sum() >= 2:
-            dp = driving_points(Q[:, clear], sig[:, clear])
-            checks["driving_point_channels"] = [names[c] for c in dp]
-            checks["antiresonances_between_peaks"] = dict(zip(names, _antiresonances(case.f, D, peaks)))
-            p = case.target.force_dof + 1
-            at_p = [c for c, fl in enumerate(floors) if fl == p]
-            others = sorted({floors[c] for c in dp if floors[c] != p})
-            if at_p and not any(c in dp for c in at_p) and len(others) == 1 and (
-                    swap is None or p not in (floors[swap[0]], floors[swap[1]])):
-                c = at_p[0]
-                bad = [f"{case.f[peaks[k]]:.3g}" for k in range(peaks.size)
-                       if clear[k] and sig[c, k] and Q[c, k] < 0]
-                good = [names[k] for k in dp]
-                zeros = checks["antiresonances_between_peaks"]
-                errors.append({"kind": "force_floor", "stated_floor": p, "data_floor": others[0],
-                               "message": f"the case puts the force at floor {p}, but channel "
-                                          f"{names[c]} (floor {p}) is not a driving point: its "
-                                          f"quadrature changes sign (negative at {', '.join(bad)} Hz), "
-                                          f"while {', '.join(good)} (floor {others[0]}) is positive at "
-                                          f"every resonance, as only the driving point can be "
-                                          f"({zeros[good[0]]} anti-resonances between its {peaks.size} "
-                                          f"resonances against {zeros[names[c]]} for {names[c]}; a "
-                                          "driving point has one between each pair). The "
-                                          f"force appears to act at floor {others[0]}: check "
-                                          "excitation.floor (or the channel labels)."})
+        Q, sig, mode_one = _sign_checks(case, D, peaks, names, floors, errors, warnings, checks)
+        swap = _swap_check(case, Q, sig, peaks, names, floors, mode_one, errors, checks)
+        _force_floor_check(case, D, Q, sig, peaks, names, floors, swap, errors, checks)
     else:
         warnings.append({"kind": "no_resonance", "message": "no resonance stands out in the band: "
                                                              "the set-up checks were skipped"})
@@ -329,6 +257,99 @@ def screen(case):
         for item in check(case):
             (errors if item.get("severity") == "error" else warnings).append(item)
     return {"setup_errors": errors, "warnings": warnings, "checks": checks}
+
+
+def _sign_checks(case, D, peaks, names, floors, errors, warnings, checks):
+    """Phase convention and sign-flipped channels at the first resonance, where every
+    floor moves in phase. Returns the quadrature Q (flips undone), its significance sig,
+    and whether the first resonance is mode 1."""
+    Q, sig = _quadrature(D, peaks)
+    expected = 1.0 if case.target.excitation == "force" else -1.0
+    mode_one, f_nom = _first_is_mode_one(case, case.f[peaks[0]])
+    flipped, all_flipped = first_mode_signs(Q, sig, expected) if mode_one else \
+        (np.array([], int), False)
+    checks["first_mode_quadrature_sign"] = dict(zip(names, np.sign(Q[:, 0]).tolist()))
+    if not mode_one:
+        warnings.append({"kind": "first_mode_unseen",
+                         "message": f"the lowest resonance in the coherent band "
+                                    f"({case.f[peaks[0]]:.3g} Hz) lies nearer the nominal "
+                                    f"model's mode 2 ({f_nom[1]:.3g} Hz) than its mode 1 "
+                                    f"({f_nom[0]:.3g} Hz): the sign and channel-order checks, "
+                                    "which need the first mode, were skipped"})
+    if all_flipped:
+        w = {"kind": "phase_convention",
+             "message": "every channel has the opposite phase at the first resonance: the "
+                        "input's sign or the FRF phase convention is reversed"}
+        (errors if case.config.objective.residual == "complex" else warnings).append(w)
+        Q = -Q
+    elif flipped.size and 2 * flipped.size < sig[:, 0].sum():
+        for c in flipped:
+            errors.append({"kind": "sign_flip", "channel": names[c],
+                           "message": f"channel {names[c]} (floor {floors[c]}) reads with the "
+                                      f"opposite sign: at the first resonance "
+                                      f"({case.f[peaks[0]]:.3g} Hz), where every floor moves in "
+                                      "phase, its phase is offset by pi from the other channels'. "
+                                      "Check the sensor's orientation and wiring (or give the "
+                                      "channel sign: -1)."})
+        Q[flipped] = -Q[flipped]
+    return Q, sig, mode_one
+
+
+def _swap_check(case, Q, sig, peaks, names, floors, mode_one, errors, checks):
+    """Two channels whose exchange makes the measured shapes match the model's; returns
+    the swapped pair of channel indices, or None."""
+    if not (peaks.size >= 2 and len(set(floors)) >= 3):
+        return None
+    Phi = _model_shapes(case, floors, min(case.model.n, peaks.size))
+    base, (best, pair) = swap_test(Phi, Q, floors)
+    checks["shape_mac"] = {"as_labelled": base, "best_exchange": best,
+                           "exchange": [names[c] for c in pair] if pair else None}
+    if not (pair and mode_one and best >= base + MAC_GAIN and best >= MAC_GOOD
+            and _first_mode_disorder(case, Q, sig, floors, pair)):
+        return None
+    a, b = pair
+    errors.append({"kind": "swapped_channels", "channels": [names[a], names[b]],
+                   "message": f"channels {names[a]} (floor {floors[a]}) and {names[b]} "
+                              f"(floor {floors[b]}) appear swapped: the measured shapes "
+                              f"at the resonances match the model's mode shapes with MAC "
+                              f"{best:.2f} when their data are exchanged, {base:.2f} as "
+                              "labelled. Check the channel order."})
+    return pair
+
+
+def _force_floor_check(case, D, Q, sig, peaks, names, floors, swap, errors, checks):
+    """The force's floor: the driving point is the channel whose quadrature is positive
+    at every resonance (with an anti-resonance between each pair)."""
+    # the force-floor test uses the resonances most channels see clearly (a noise
+    # bump of a one-segment estimate has a random phase on each channel)
+    clear = sig.sum(axis=0) >= max(2, (sig.shape[0] + 1) // 2)
+    if not (case.target.excitation == "force" and clear.sum() >= 2):
+        return
+    dp = driving_points(Q[:, clear], sig[:, clear])
+    checks["driving_point_channels"] = [names[c] for c in dp]
+    checks["antiresonances_between_peaks"] = dict(zip(names, _antiresonances(case.f, D, peaks)))
+    p = case.target.force_dof + 1
+    at_p = [c for c, fl in enumerate(floors) if fl == p]
+    others = sorted({floors[c] for c in dp if floors[c] != p})
+    if not (at_p and not any(c in dp for c in at_p) and len(others) == 1 and (
+            swap is None or p not in (floors[swap[0]], floors[swap[1]]))):
+        return
+    c = at_p[0]
+    bad = [f"{case.f[peaks[k]]:.3g}" for k in range(peaks.size)
+           if clear[k] and sig[c, k] and Q[c, k] < 0]
+    good = [names[k] for k in dp]
+    zeros = checks["antiresonances_between_peaks"]
+    errors.append({"kind": "force_floor", "stated_floor": p, "data_floor": others[0],
+                   "message": f"the case puts the force at floor {p}, but channel "
+                              f"{names[c]} (floor {p}) is not a driving point: its "
+                              f"quadrature changes sign (negative at {', '.join(bad)} Hz), "
+                              f"while {', '.join(good)} (floor {others[0]}) is positive at "
+                              f"every resonance, as only the driving point can be "
+                              f"({zeros[good[0]]} anti-resonances between its {peaks.size} "
+                              f"resonances against {zeros[names[c]]} for {names[c]}; a "
+                              "driving point has one between each pair). The "
+                              f"force appears to act at floor {others[0]}: check "
+                              "excitation.floor (or the channel labels)."})
 
 
 def _coherence(case, peaks, names, warnings, checks):

@@ -1,30 +1,48 @@
 """Decisions under model error, effects inside the model class, agreement between tests.
 
 The data are simulated here, independently of the package: the direct FRF
--w^2 (K - w^2 M + j w C)^-1 b of a shear frame (support.frames.shear_K) with 1 %
+-w^2 (K - w^2 M + j w C)^-1 b of a shear frame (conftest.shear_K) with 1 %
 complex noise, written as an NPZ FRF file next to a case file.
 """
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import yaml
 from scipy.linalg import eigh
 
-from nlp.case.load import load_case
+import nlp.diagnosis.candidates as cand
+import nlp.diagnosis.driver as D
+import nlp.diagnosis.widen as W
 from nlp.case.assemble import assemble
-from nlp.diagnosis.driver import _classify, _decide, _public, _repolish, diagnose
-from nlp.diagnosis.fitting import _normalised, _problem, _target, _windows, noise_sigma
+from nlp.case.load import load_case
+from nlp.diagnosis.band import extra_modes, hot_spots, local_sigma
+from nlp.diagnosis.candidates import candidates
+from nlp.diagnosis.decide import better_unresolved, decide
+from nlp.diagnosis.driver import diagnose
 from nlp.diagnosis.evidence import (BIC_ACCEPT, BIC_TIE, HELD_OUT_FLOOR, STRONG_BIC, dispersion,
-                                    evidence,
-                                    held_out_excess, held_out_ok, scaled_delta_bic, tied)
-from nlp.diagnosis.priors import decompose_damping, story_patterns
-from support.diagnosis import F
-from support.diagnosis import baseline as _baseline, frame as _frame, frf_case as _case
-from support.diagnosis import write_frf as _write
+                                    evidence, held_out_excess, held_out_ok, scaled_delta_bic,
+                                    tied)
+from nlp.diagnosis.families import ZETA_S_MIN, SecondaryOscillator
+from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
+                                   noise_sigma, normalised, signed)
+from nlp.diagnosis.inside import dashpot_refit
+from nlp.diagnosis.levels import (level_fit, level_location, release_location, released_story,
+                                  shared_stiffness)
+from nlp.diagnosis.others import refits_of_others, setup_others
+from nlp.diagnosis.priors import (STORY_ZETA, damper_check, damping_excess, decompose_damping,
+                                  modal_share, story_damping_ratio, story_patterns)
+from nlp.diagnosis.refit import repolish
+from nlp.diagnosis.resolution import (appendage_split, damping_pinned, estimate_resolution,
+                                      resolved)
+from nlp.diagnosis.verdict import classify, public
+from nlp.frf.scatter import second_difference_factor
+from support.diagnosis import F, baseline_fit, frame_matrices, write_case_yaml, write_frf
 from support.frames import shear_K
+
 
 
 def _accelerance(M, C, K, floor, rng, noise=0.01):
@@ -45,9 +63,9 @@ def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
     m_nom, k_nom = [5.0, 5.0, 5.0], [3000.0, 2800.0, 2600.0]
     m = np.array([5.0, 7.5, 5.0])                # +2.5 kg on floor 2: +50 %, 5 prior sigmas
     k = np.array(k_nom) * [1.1, 0.95, 1.05]      # ordinary changes, inside the 25 % prior
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, m_nom, k_nom, [("frf.npz", 1)],
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, m_nom, k_nom, [("frf.npz", 1)],
                 {"prior": {"masses": 0.10, "stiffnesses": 0.25}},
                 {"model": "rayleigh", "zeta": 0.015})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -65,11 +83,11 @@ def test_added_mass_appears_as_mass_outside_its_prior(tmp_path):
 def test_concentrated_damper_from_the_fitted_damping(tmp_path):
     rng = np.random.default_rng(2)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     e = np.array([-1.0, 1.0, 0.0])               # dashpot between floors 1 and 2
     C = C + 12.0 * np.outer(e, e)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)],
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "general", "zeta": 0.01})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -88,19 +106,18 @@ def test_widened_look_after_a_finding_starts_from_the_first(tmp_path, monkeypatc
     3x wider windows: the first look's optima start that look (no second scatter search),
     its finding is re-proven alone (one refit) before the other candidates, and it is kept
     with its value (900 N/m within its uncertainty)."""
-    import nlp.diagnosis.driver as D
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, _coupled(k, 900.0), 1, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+    M, C, _ = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, _coupled(k, 900.0), 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     searches, rounds, lines = [], [], []
-    search, refit_all = D._search, D._refit_all
-    monkeypatch.setattr(D, "_search", lambda *a, **kw: searches.append(1) or search(*a, **kw))
-    monkeypatch.setattr(D, "_refit_all", lambda jobs, sc: rounds.append((len(lines), len(jobs)))
+    search, refit_all = D.scatter_best, D.refit_all
+    monkeypatch.setattr(D, "scatter_best", lambda *a, **kw: searches.append(1) or search(*a, **kw))
+    monkeypatch.setattr(D, "refit_all", lambda jobs, sc: rounds.append((len(lines), len(jobs)))
                         or refit_all(jobs, sc))
-    monkeypatch.setattr(D, "HELD_LEFT", 0.0)
+    monkeypatch.setattr(W, "HELD_LEFT", 0.0)
     res = diagnose(cfg, str(tmp_path / "out"), log=lines.append)
     widened = [i for i, line in enumerate(lines) if "findings leave the held-out" in line]
     assert widened, "the widened look after a finding did not run"
@@ -140,12 +157,12 @@ def test_finding_must_hold_on_the_other_test(tmp_path, same_structure):
     without the coupling, it does not, and the verdict says so."""
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
-    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
     K2 = K if same_structure else shear_K(k)
-    _write(tmp_path, "test2.npz", _accelerance(M, C, K2, 2, rng))
-    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+    write_frf(tmp_path, "test2.npz", _accelerance(M, C, K2, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
@@ -189,13 +206,13 @@ def test_five_different_candidates_within_the_window_are_ambiguous():
              ("nonadjacent_coupling", {"between": [1, 3]}), ("local_damper", {"between": [0, 1]}),
              ("added_mass", {"floor": 2})]
     results = [_result(p, loc, c) for (p, loc), c in zip(kinds, chis)]
-    phi = _decide(results, ref_chi, 10.0, nu, n_fit)
+    phi = decide(results, ref_chi, 10.0, nu, n_fit)
     assert phi == pytest.approx(1900.0 / 189)
     assert all(r["accepted"] for r in results)
     acc = sorted(results, key=lambda r: r["delta_bic"])
     ties = tied(acc)
     assert len(ties) == 4 and (50.0 / phi) < BIC_TIE
-    assert _classify(confirmed=[], unconfirmed=[], indistinct=[acc[0]] + ties, nonlin=False,
+    assert classify(confirmed=[], unconfirmed=[], indistinct=[acc[0]] + ties, nonlin=False,
                      inside=[], adequate=False) == "ambiguous"
     # without the quasi-likelihood scale the same chi-squares would be 50 apart: one winner
     assert tied(acc, window=BIC_TIE / phi) == []
@@ -208,17 +225,17 @@ def test_a_lower_held_out_error_alone_accepts_nothing():
     ref_chi, nu, n_fit = 280.0, 290, 300      # reduced chi-square below 1: phi = 1
     weak = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, ref_chi - 8.1,
                         value=-7.7, se=2.2), held_out=1.15)
-    _decide([weak], ref_chi, 2.99, nu, n_fit)
+    decide([weak], ref_chi, 2.99, nu, n_fit)
     # 1 parameter: dBIC = -8.1 + ln(300) = -2.4
     assert weak["delta_bic"] == pytest.approx(-8.1 + math.log(300))
     assert -BIC_ACCEPT < weak["delta_bic"] < 0 and weak["significant"]
     assert not weak["accepted"]
     strong = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, ref_chi - 60.0,
                           value=-7.7, se=2.2), held_out=0.79 * 2.99)
-    _decide([strong], ref_chi, 2.99, nu, n_fit)
+    decide([strong], ref_chi, 2.99, nu, n_fit)
     assert strong["delta_bic"] <= -BIC_ACCEPT and strong["accepted"]
     strong["held_out"] = 0.81 * 2.99      # the fit improves, the held-out points do not
-    _decide([strong], ref_chi, 2.99, nu, n_fit)
+    decide([strong], ref_chi, 2.99, nu, n_fit)
     assert not strong["accepted"]
 
 
@@ -230,19 +247,19 @@ def test_held_out_points_already_at_their_noise_need_only_not_get_worse():
     ref_chi, nu, n_fit = 1840.0, 1830, 1841
     r = dict(_result("base_flexibility", {}, ref_chi - 160.0), held_out=0.99)
     r["parameters"], r["uncertainty"] = {"log10_kb": 3.88}, {"log10_kb": 0.012}
-    _decide([r], ref_chi, 1.08, nu, n_fit)
+    decide([r], ref_chi, 1.08, nu, n_fit)
     assert r["delta_bic"] <= -BIC_ACCEPT and r["significant"] and r["accepted"]
     r["held_out"] = 1.09                  # a hair worse on the points never fitted
-    _decide([r], ref_chi, 1.08, nu, n_fit)
+    decide([r], ref_chi, 1.08, nu, n_fit)
     assert not r["accepted"]
     r["held_out"] = 0.81 * 1.6            # above the floor a 19 % cut is not enough
-    _decide([r], ref_chi, 1.6, nu, n_fit)
+    decide([r], ref_chi, 1.6, nu, n_fit)
     assert 1.6 > HELD_OUT_FLOOR and not r["accepted"]
     assert held_out_ok(0.79 * 1.6, 1.6) and held_out_ok(1.3, 1.3) and not held_out_ok(1.31, 1.3)
     # an appendage can put its resonance on any bin: it keeps the 20 % cut
     a = dict(_result("secondary_oscillator", {"floor": 4}, ref_chi - 60.0, value=0.01,
                      se=0.001), held_out=1.05)
-    _decide([a], ref_chi, 1.08, nu, n_fit)
+    decide([a], ref_chi, 1.08, nu, n_fit)
     assert a["delta_bic"] <= -BIC_ACCEPT and a["significant"] and not a["accepted"]
     assert held_out_ok(0.8 * 1.08, 1.08, "secondary_oscillator")
 
@@ -255,12 +272,12 @@ def test_an_appendage_proven_on_the_fitted_points_needs_only_leave_the_held_out_
     ref_chi, nu, n_fit = 1840.0, 1830, 1841
     a = dict(_result("secondary_oscillator", {"floor": 1}, ref_chi - 430.0, value=0.01,
                      se=0.001), held_out=1.20)
-    _decide([a], ref_chi, 1.34, nu, n_fit)
+    decide([a], ref_chi, 1.34, nu, n_fit)
     # scaled: phi = 1 (reduced chi-square below 1), one parameter of the test's result
     assert a["delta_bic"] == pytest.approx(-430.0 + math.log(n_fit))
     assert a["delta_bic"] <= -STRONG_BIC and a["significant"] and a["accepted"]
     a["held_out"] = 1.35                  # a hair worse on the points never fitted
-    _decide([a], ref_chi, 1.34, nu, n_fit)
+    decide([a], ref_chi, 1.34, nu, n_fit)
     assert not a["accepted"]
     assert not held_out_ok(1.20, 1.34, "secondary_oscillator", -STRONG_BIC + 1.0)
     assert held_out_ok(1.20, 1.34, "secondary_oscillator", -STRONG_BIC)
@@ -272,7 +289,7 @@ def test_held_out_points_tell_apart_candidates_that_fit_the_windows_alike():
     residuals: the held-out data separate them by (4.0 - 1.3) x 2000 / 1.3 in chi-square."""
     a = dict(_result("secondary_oscillator", {"floor": 1}, 1000.0), held_out=1.3)
     b = dict(_result("added_mass", {"floor": 1}, 1002.0), held_out=4.0)
-    _decide([b, a], 4000.0, 10.0, 190, 200, n_held=2000)
+    decide([b, a], 4000.0, 10.0, 190, 200, n_held=2000)
     assert a["held_excess"] == 0.0
     assert b["held_excess"] == pytest.approx((4.0 - 1.3) * 2000 / 1.3)
     acc = sorted([b, a], key=evidence)
@@ -289,36 +306,36 @@ def test_current_model_re_solved_from_a_refit_leaves_a_local_minimum(tmp_path, r
     the re-solve starts there and reaches the optimum of a solve from the true parameters;
     nothing changes when the current model is already there."""
     m, k = np.array([5.0, 4.0, 3.0]), np.array([4000.0, 3500.0, 3000.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
-    cfg = _case(tmp_path, 1.15 * m, 0.8 * k, [("frf.npz", 1)],
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, 1.15 * m, 0.8 * k, [("frf.npz", 1)],
                 {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.5, 1.0]},
                 {"model": "rayleigh", "zeta": 0.02})
     case = assemble(cfg)
-    fit = _windows(cfg, case, 1)
-    held = np.setdiff1d(_windows(cfg, case, 3), fit)
-    pr = _problem(case, _target(case, fit, noise_sigma(case, fit)), optimize=False)
+    fit = fit_windows(cfg, case, 1)
+    held = np.setdiff1d(fit_windows(cfg, case, 3), fit)
+    pr = diagnosis_problem(case, fit_target(case, fit, noise_sigma(case, fit)), optimize=False)
     truth = pr.params.z_from_theta(np.concatenate([m / (1.15 * m) - 1, k / (0.8 * k) - 1,
                                                    pr.theta(pr.z0)[6:]]))
     ref = pr.solve(truth)
     assert ref.success
     sig_h = noise_sigma(case, held)
     stuck = {"current": [], "z": pr.z0, "chi": 2 * float(pr.objective(pr.z0)), "problem": pr,
-             "held": float(np.mean(_normalised(pr, pr.z0, case, held, sig_h) ** 2))}
+             "held": float(np.mean(normalised(pr, pr.z0, case, held, sig_h) ** 2))}
     refit = {"z": np.concatenate([truth * 1.01, [0.0]]), "chi2": 2 * ref.f - 5.0}
-    better = _repolish(stuck, [refit], case, held, sig_h)
+    better = repolish(stuck, [refit], case, held, sig_h)
     assert better is not None and better["chi"] == pytest.approx(2 * ref.f, rel=1e-6)
     # started from the refit's optimum without its candidate (this frame has one basin, so
     # the start is what shows the mechanism)
     assert np.allclose(better["result"].z0, np.clip(truth * 1.01, *pr.bounds))
     assert better["chi"] / (pr.n_used - pr.params.n_z) < 1.5   # inside the model class
     at_opt = dict(stuck, z=ref.z, chi=2 * ref.f)
-    assert _repolish(at_opt, [dict(refit, chi2=2 * ref.f - 0.5)], case, held, sig_h) is None
+    assert repolish(at_opt, [dict(refit, chi2=2 * ref.f - 0.5)], case, held, sig_h) is None
 
 
 def test_effect_within_three_standard_errors_is_not_accepted():
     r = _result("sensor_gain", {"channel": "a1"}, 1000.0, value=0.05, se=0.02)
-    _decide([r], 4000.0, 10.0, 190, 200)
+    decide([r], 4000.0, 10.0, 190, 200)
     assert not r["significant"] and not r["accepted"]
 
 
@@ -346,11 +363,11 @@ def test_a_flexible_base_whose_mass_and_dashpot_the_data_leave_open_is_still_fou
 
     open_c, open_m = base(0.1, 12.0), base(5.0, 0.5)
     wald_weak, small_drop = base(0.1, 0.5, se_k=1.0), base(0.1, 0.5, chi2=2992.0)
-    _decide([open_c, open_m, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
+    decide([open_c, open_m, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
     assert open_c["accepted"] and open_m["accepted"] and wald_weak["accepted"]
-    assert _public(open_m)["not_determined"] == ["m_base"]
+    assert public(open_m)["not_determined"] == ["m_base"]
     assert not small_drop["significant"] and "chi-square drop" in small_drop["why_not"]
-    pub = _public(open_c)
+    pub = public(open_c)
     assert pub["not_determined"] == ["c_base"] and "c_base" not in pub["parameters"]
 
 
@@ -358,7 +375,6 @@ def test_an_appendage_refit_also_starts_at_each_unexplained_resonance():
     """The extra modes of the whole band are starts of the appendage refit when they lie
     inside its frequency box and away from the scan's own start; they are not part of
     the candidate's identity (same repr, equal candidates)."""
-    from nlp.diagnosis.families import SecondaryOscillator
     e = SecondaryOscillator(1, 8.17, resonances=(9.52, 30.0, 8.2, 3.0))
     assert e.starts({}) == [[0.01, 9.52, 0.02]]
     assert e == SecondaryOscillator(1, 8.17) and repr(e) == repr(SecondaryOscillator(1, 8.17))
@@ -378,19 +394,19 @@ def test_an_appendage_whose_damping_the_data_leave_open_is_still_found():
     mass_open = _appendage(0.05, 0.06, 0.05, 0.0245, 0.11)
     wald_weak = _appendage(0.05, 0.02, 0.05, 0.0245, 0.11)
     small_drop = dict(_appendage(0.05, 0.005, 0.05, 0.0245, 0.11), chi2=2992.0)
-    _decide([ok, freq_open, mass_open, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
+    decide([ok, freq_open, mass_open, wald_weak, small_drop], 3000.0, 6.0, 1700, 1771)
     assert ok["accepted"] and not freq_open["accepted"] and not mass_open["accepted"]
     assert "f_s4" in freq_open["why_not"] and "mu4" in mass_open["why_not"]
     assert wald_weak["significant"] and wald_weak["accepted"]
     assert not small_drop["significant"] and "chi-square drop" in small_drop["why_not"]
-    pub = _public(ok)
+    pub = public(ok)
     assert pub["not_determined"] == ["zeta_s4"] and set(pub["parameters"]) == {"mu4", "f_s4"}
     assert all(pub["uncertainty"][n] < abs(v) for n, v in pub["parameters"].items())
     assert "zeta_s4" in pub["statement"] and "not determined" in pub["statement"]
     # a determined damping ratio is reported with its error, as before
     firm = _appendage(0.05, 0.005, 0.05, 0.0245, 0.004)
-    _decide([firm], 3000.0, 6.0, 1700, 1771)
-    assert firm["accepted"] and "not_determined" not in _public(firm)
+    decide([firm], 3000.0, 6.0, 1700, 1771)
+    assert firm["accepted"] and "not_determined" not in public(firm)
 
 
 def test_an_appendage_whose_damping_sits_on_its_lower_bound_is_refused():
@@ -398,15 +414,13 @@ def test_an_appendage_whose_damping_sits_on_its_lower_bound_is_refused():
     (retired 83439/50: 0.00102 +- 0.00033 against 0.001) is a line as sharp as the
     model allows, not a resonance: refused, with the reason. Two errors above the
     bound it stands; an undetermined damping (error above its value) does not decide."""
-    from nlp.diagnosis.resolution import damping_pinned
-    from nlp.diagnosis.families import ZETA_S_MIN, SecondaryOscillator
     assert SecondaryOscillator(4, 5.0).spec({})["lower"][2] == ZETA_S_MIN
     assert damping_pinned(0.00102, 0.00033, 0.001)
     assert not damping_pinned(0.001 + 2 * 0.00033, 0.00033, 0.001)
     assert not damping_pinned(0.0245, 0.11, 0.001)
     sharp = _appendage(0.05, 0.005, 0.05, 0.00102, 0.00033)
     clear = _appendage(0.05, 0.005, 0.05, 0.00175, 0.00033)
-    _decide([sharp, clear], 3000.0, 6.0, 1700, 1771)
+    decide([sharp, clear], 3000.0, 6.0, 1700, 1771)
     assert not sharp["accepted"] and "lower bound" in sharp["why_not"]
     assert clear["accepted"]
 
@@ -417,7 +431,6 @@ def test_a_better_unresolved_appendage_is_said_beside_the_finding():
     146094/12): the coupling is still the best accepted candidate, and the appendage is
     returned as a better explanation the data cannot resolve. One that trails the coupling,
     or one refused for its errors, is not."""
-    from nlp.diagnosis.driver import _better_unresolved
     split = {"separation_hz": 0.49, "half_widths_hz": 0.68, "resolution_hz": 0.05,
              "appendage_mode_hz": 8.39, "nearest_mode_hz": 7.90, "resolved": False}
     coupling = dict(_result("nonadjacent_coupling", {"between": [1, 4]}, 2000.0), held_out=1.89)
@@ -426,27 +439,26 @@ def test_a_better_unresolved_appendage_is_said_beside_the_finding():
     behind = dict(ahead, location={"floor": 3}, chi2=2150.0, held_out=2.0)
     shaky = dict(ahead, location={"floor": 2}, uncertainty=dict(ahead["uncertainty"], mu4=0.2))
     results = [coupling, ahead, behind, shaky]
-    _decide(results, 3000.0, 6.0, 1700, 1771, n_held=2000)
+    decide(results, 3000.0, 6.0, 1700, 1771, n_held=2000)
     assert coupling["accepted"] and not ahead["accepted"] and ahead["unresolved"]
     assert "not a separate resonance" in ahead["why_not"]
     assert not shaky["unresolved"]          # refused on its own errors, not on resolution
-    out = _better_unresolved(results, coupling, 6.0)
+    out = better_unresolved(results, coupling, 6.0)
     assert [r["location"] for r in out] == [{"floor": 4}]
     assert out[0]["instead_of"] == "nonadjacent_coupling {'between': [1, 4]}"
     # resolved, it would simply be accepted and ranked ahead of the coupling
     res = dict(ahead, split=dict(split, resolved=True))
-    _decide([coupling, res], 3000.0, 6.0, 1700, 1771, n_held=2000)
-    assert res["accepted"] and _better_unresolved([coupling, res], coupling, 6.0) == []
+    decide([coupling, res], 3000.0, 6.0, 1700, 1771, n_held=2000)
+    assert res["accepted"] and better_unresolved([coupling, res], coupling, 6.0) == []
 
 
 def test_extra_mode_found_with_its_channels_and_nothing_else():
     """A 3-storey frame 'measured' with an appendage on floor 3 tuned to 11 Hz (a mode the
     3-DOF model lacks); the model is the frame alone. The extra mode is reported at its
     frequency on the channels that see it; the frame's own modes and zeros are not."""
-    from nlp.diagnosis.band import extra_modes, local_sigma
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
     ms, fs = 0.05, 11.0                       # 1 % of a floor, 0.5 % damping
     ks, cs = ms * (2 * np.pi * fs) ** 2, 2 * 0.005 * ms * 2 * np.pi * fs
@@ -480,10 +492,9 @@ def test_hot_spot_of_an_appendage_between_two_modes():
     within 4 % of its modes are the fitted ones. The largest misfit off them lies at the
     appendage (within 15 %: the residual peaks on the resonance-antiresonance pair it
     makes); the frame measured with noise has none; fitted points are never one."""
-    from nlp.diagnosis.band import hot_spots
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.02)
+    M, C, K = frame_matrices(m, k, zeta=0.02)
     fn = np.sqrt(eigh(K, M, eigvals_only=True)) / (2 * np.pi)
     H_model = _accelerance(M, C, K, 1, rng, noise=0.0)
     ms, fs = 0.25, 3.2
@@ -512,8 +523,6 @@ def test_local_sigma_of_a_windowed_estimate_counts_its_correlated_bins():
     local scatter read with the window's second-difference factor recovers the point
     standard deviation (np.std of the errors themselves); read as independent bins it
     understates it by sqrt(6 / 2.5) = 1.55."""
-    from nlp.diagnosis.band import local_sigma
-    from nlp.frf.scatter import second_difference_factor
     rng = np.random.default_rng(3)
     n, taps = 20000, np.array([-0.25, 0.5, -0.25])   # a Hann window in the frequency domain
 
@@ -533,17 +542,16 @@ def test_modal_share_of_a_story_dashpot():
     """A dashpot that is the only damping supplies all of every mode's damping;
     Rayleigh damping has no excess anywhere; a 12 N s/m dashpot over 1 % Rayleigh
     damping dominates (the phi^T C phi of each mode checked by hand-built sums)."""
-    from nlp.diagnosis.priors import _excess, modal_share
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     P = story_patterns(3)
     only = 7.0 * P[1]
-    share = modal_share(M, K, only, _excess(only, M, K)[0])
+    share = modal_share(M, K, only, damping_excess(only, M, K)[0])
     np.testing.assert_allclose(share[1], 1.0, rtol=1e-10)
     assert np.all(share[[0, 2]] == 0.0)
-    np.testing.assert_allclose(modal_share(M, K, C, _excess(C, M, K)[0]), 0.0, atol=1e-9)
+    np.testing.assert_allclose(modal_share(M, K, C, damping_excess(C, M, K)[0]), 0.0, atol=1e-9)
     C2 = C + 12.0 * P[1]
-    ex = _excess(C2, M, K)[0]
+    ex = damping_excess(C2, M, K)[0]
     _, phi = eigh(K, M)
     drift = phi[1] - phi[0]
     by_hand = ex[1] * drift ** 2 / np.array([phi[:, r] @ C2 @ phi[:, r] for r in range(3)])
@@ -556,7 +564,6 @@ def test_appendage_split_of_a_tuned_absorber_and_what_resolves_it():
     (w/w0)^2 = 1 + mu/2 +- sqrt(mu + mu^2/4) (Den Hartog). A tiny one (mu = 0.0004) splits
     by less than the half-power half-widths of 2 % damping: one reshaped peak; mu = 0.05 splits
     by about f sqrt(mu), far wider: a resonance of its own."""
-    from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
     m0, f0 = 10.0, 3.0
     k0 = m0 * (2 * np.pi * f0) ** 2
     for mu, expect in ((0.0004, False), (0.05, True)):
@@ -586,7 +593,6 @@ def test_a_damped_appendage_whose_half_power_bands_stand_apart_is_resolved():
     overlap and the appendage is a resonance of its own, although its full bandwidth
     (0.87 Hz) exceeds the separation. Closer than the half-widths, or than the
     estimate's resolution, it is not."""
-    from nlp.diagnosis.resolution import appendage_split, resolved
     m = np.array([10.0, 0.5])
     f = np.array([8.08, 8.73])
     zeta = np.array([0.01, 0.05])
@@ -620,7 +626,6 @@ def test_no_damper_claimed_next_to_a_story_dashpot_pinned_at_zero():
     it is a concentrated damper; with story 1's dashpot at zero (the non-negative
     decomposition on its bound) story 2 may carry story 1's damping, and nothing is
     claimed."""
-    from nlp.diagnosis.priors import damper_check
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     pr = _DampedFrame(m, k)
     cov = np.diag(np.full(4, 1e-6))
@@ -636,7 +641,6 @@ def test_damper_away_from_a_pinned_story_is_claimed_against_the_unpinned_stories
     """Four stories, story 1 pinned at zero and story 3 far above the others: the damper is
     claimed, and its share is measured against stories 2 and 4 only (the pinned zero would
     halve the median c / k and double the ratio)."""
-    from nlp.diagnosis.priors import damper_check
     m, k = np.array([5.0, 5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0, 2400.0])
     pr = _DampedFrame(m, k)
     cov = np.diag(np.full(5, 1e-6))
@@ -655,7 +659,6 @@ def test_story_damping_ratio_by_hand():
     the ratio is e / (2 sqrt(k_2 m_2)) / (a1 median(omega) / 2). With the dashpot left
     in its own yardstick (removed = 0) the median is that of a1 K + e P_2, by a separate
     eigen-solution."""
-    from nlp.diagnosis.priors import story_damping_ratio, story_patterns
     m, k = np.array([4.0, 6.0, 5.0]), np.array([3000.0, 2500.0, 2000.0])
     M, K = np.diag(m), shear_K(k)
     a1 = 0.002
@@ -676,7 +679,6 @@ def test_damper_must_stand_out_one_standard_error_below_its_estimate():
     times the median modal damping. Determined to 1 %, it is a concentrated damper; with a
     standard error that puts it below STORY_ZETA one error lower, it is not, though it
     stands well over DETERMINED standard errors from zero."""
-    from nlp.diagnosis.priors import STORY_ZETA, _excess, damper_check, story_damping_ratio
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     pr = _DampedFrame(m, k)
     base = np.array([0.1, 3.0, 0.0, 2.6])
@@ -684,7 +686,7 @@ def test_damper_must_stand_out_one_standard_error_below_its_estimate():
 
     def ratio(c2, minus=0.0):
         C = pr.matrices(np.r_[base[:2], c2, base[3]])[2]
-        ex = _excess(C, M, K)[0]
+        ex = damping_excess(C, M, K)[0]
         return story_damping_ratio(M, K, C, ex - np.r_[0.0, minus, 0.0], removed=ex)[0][1]
 
     target = STORY_ZETA + 0.05
@@ -693,7 +695,7 @@ def test_damper_must_stand_out_one_standard_error_below_its_estimate():
         mid = 0.5 * (lo_ + hi_)
         lo_, hi_ = (mid, hi_) if ratio(mid) < target else (lo_, mid)
     z = np.r_[base[:2], hi_, base[3]]
-    ex = _excess(pr.matrices(z)[2], M, K)[0][1]
+    ex = damping_excess(pr.matrices(z)[2], M, K)[0][1]
     info, flagged = damper_check(pr, z, np.diag([1e-8, 1e-8, (0.01 * ex) ** 2, 1e-8]))
     assert [d["story"] for d in flagged] == [2]
     assert flagged[0]["story_zeta_ratio"] == pytest.approx(target, abs=1e-6)
@@ -708,25 +710,22 @@ def test_candidates_ranked_high_on_the_other_test_are_refitted(tmp_path):
     other test's ranking adds it to the refits, so both tests take the same path.
     Here this test's own list is emptied: the coupling must come from the other test,
     whose score at its own baseline optimum ranks it first."""
-    from nlp.diagnosis.driver import _refits_of_others, _setup_others
-    from nlp.diagnosis.fitting import _fit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
-    _write(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "test2.npz", _accelerance(M, C, K, 2, rng))
-    cfg = _case(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+    write_frf(tmp_path, "test1.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "test2.npz", _accelerance(M, C, K, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
                 {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
                 {"model": "rayleigh", "zeta": 0.015})
     case = assemble(cfg)
-    idx = _windows(cfg, case, 1)
-    pr = _problem(case, _target(case, idx, noise_sigma(case, idx)))
-    z = _fit(pr, [pr.z0]).z
-    others = _setup_others(cfg)
-    from nlp.diagnosis.driver import candidates
+    idx = fit_windows(cfg, case, 1)
+    pr = diagnosis_problem(case, fit_target(case, idx, noise_sigma(case, idx)))
+    z = best_fit(pr, [pr.z0]).z
+    others = setup_others(cfg)
     here = {repr(e): 1.0 for e in candidates(case)}
-    jobs = _refits_of_others(others, {"current": [], "z": z}, [], here, top=1)
+    jobs = refits_of_others(others, {"current": [], "z": z}, [], here, top=1)
     assert [e.family for _, e in jobs].count("nonadjacent_coupling") == 1
     assert any(e.family == "nonadjacent_coupling" for _, e in jobs[:1])
     # and the other test's optimum is cached for the model it was fitted for
@@ -742,11 +741,11 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
     too. Cristallo, where it did not, is in notes.md.)"""
     rng = np.random.default_rng(11)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = _frame(m, k)
+    M, C, _ = frame_matrices(m, k)
     K = _coupled(k, 900.0)
     gain = np.array([1.0, 0.88, 1.0])[:, None]
     for name, floor in (("test1.npz", 1), ("test2.npz", 2)):
-        _write(tmp_path, name, gain * _accelerance(M, C, K, floor, rng))
+        write_frf(tmp_path, name, gain * _accelerance(M, C, K, floor, rng))
     params = {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}}
     damping = {"model": "rayleigh", "zeta": 0.015}
     out = []
@@ -755,7 +754,7 @@ def test_two_tests_give_the_same_finding_whichever_is_updated(tmp_path):
         folder.mkdir()
         for name, _ in order:
             (folder / name).symlink_to(tmp_path / name)
-        res = diagnose(_case(folder, m, k, order, params, damping), str(folder / "out"),
+        res = diagnose(write_case_yaml(folder, m, k, order, params, damping), str(folder / "out"),
                        log=lambda *_: None)
         out.append({(f["physics"], repr(f["location"])): f for f in res["findings"]
                     if "uncertainty" in f})
@@ -773,23 +772,21 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     structured refit (C = a0 M + story dashpots) fits as well as the general C, and its
     story dashpots stand within 4 of their own standard errors of the true ones (true
     c_s = a1 k_s + dashpot_s, the story pattern of a stiffness-proportional C)."""
-    from nlp.diagnosis.inside import _dashpot_refit
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
-    M, C_r, K = _frame(m, k, zeta=0.01)
+    M, C_r, K = frame_matrices(m, k, zeta=0.01)
     a1 = C_r[0, 1] / -k[1]                        # from the off-diagonal of a1 K
     a0 = (C_r[0, 0] - a1 * (k[0] + k[1])) / m[0]
     dash = np.array([1.5, 0.5, 14.0, 1.0])        # N s/m; story 3 is a damper
     C = C_r + sum(c * P for c, P in zip(dash, story_patterns(4)))
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 2, rng))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 2, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.01}, channels=4)
-    case, state = _baseline(cfg)
-    s = _dashpot_refit(case, state)
+    case, state = baseline_fit(cfg)
+    s = dashpot_refit(case, state)
     assert s["fits"], s
-    from nlp.diagnosis.priors import decompose_damping as dec
     Mz, _, Cz = s["problem"].matrices(s["z"])
-    a0_fit, c_fit, left = dec(Cz, Mz)
+    a0_fit, c_fit, left = decompose_damping(Cz, Mz)
     assert left < 1e-9                             # C is of the family by construction
     se = np.sqrt(np.diag(s["cov"]))
     # the decision variables behind the dashpots: c_s = a1_ref theta_s k0_s, linear
@@ -804,9 +801,9 @@ def test_story_dashpots_refitted_directly_recover_non_proportional_damping(tmp_p
     # a general C that no story-dashpot family holds (a strong 1-3 dashpot) is refused
     e13 = np.array([1.0, 0.0, -1.0, 0.0])
     C13 = C_r + 30.0 * np.outer(e13, e13)
-    _write(tmp_path, "frf.npz", _accelerance(M, C13, K, 2, rng))
-    case, state = _baseline(load_case(str(tmp_path / "case.yaml")))
-    s13 = _dashpot_refit(case, state)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C13, K, 2, rng))
+    case, state = baseline_fit(load_case(str(tmp_path / "case.yaml")))
+    s13 = dashpot_refit(case, state)
     assert not s13["fits"] and s13["excess"] > s13["limit"], s13
 
 
@@ -817,21 +814,19 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
     level does not (the rise is many times the price), and freeing one story's stiffness
     at a time names story 2: its refit takes nearly all of the rise (over 0.8 of it), the
     others under half."""
-    from nlp.diagnosis.levels import (_level_fit, _level_location, _release_location,
-                                      _released_story, _shared_stiffness)
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.015)
-    _write(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "same.npz", _accelerance(M, C, K, 1, rng))
-    _write(tmp_path, "stiff.npz", _accelerance(M, C, shear_K(k * [1.0, 1.06, 1.0]), 1, rng))
-    cfg = _case(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k, zeta=0.015)
+    write_frf(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "same.npz", _accelerance(M, C, K, 1, rng))
+    write_frf(tmp_path, "stiff.npz", _accelerance(M, C, shear_K(k * [1.0, 1.06, 1.0]), 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.015})
     cfg = replace(cfg, solver=replace(cfg.solver, options={"max_iter": 3000}))
-    ref = _level_fit(cfg, cfg.data.file)
+    ref = level_fit(cfg, cfg.data.file)
     for name, changed in (("same.npz", False), ("stiff.npz", True)):
-        lv = _level_fit(cfg, str(tmp_path / name), ref["z"])
-        lr = _shared_stiffness(ref, lv)
+        lv = level_fit(cfg, str(tmp_path / name), ref["z"])
+        lr = shared_stiffness(ref, lv)
         assert lr["converged"]
         assert (lr["excess"] > lr["limit"]) == changed, (name, lr)
         if changed:
@@ -841,12 +836,12 @@ def test_levels_compared_by_the_fit_with_shared_stiffnesses(tmp_path):
             # file noise spread its peak bias (b8c390f), then story 3 (scores 494, 778,
             # 2631), while story 2's release took 83,977 of the rise of 83,979. It decides
             # only where a release refit did not converge; here it must rank story 2 above 1
-            scores = _level_location(ref, lv)[1]
+            scores = level_location(ref, lv)[1]
             assert scores[1] > scores[0]
-            release = _release_location(ref, lv, lr)
+            release = release_location(ref, lv, lr)
             assert all(ok for _, ok in release)
             drops = [d for d, _ in release]
-            assert _released_story(release) == 1
+            assert released_story(release) == 1
             # story 2 freed is the other level's own model up to its damping: the drop
             # takes the whole rise (less what the level's own masses would add)
             assert drops[1] > 0.8 * lr["rise"]
@@ -861,23 +856,22 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
     set of masses and stiffnesses for both levels is a chi-square of k = 5 degrees of
     freedom (k1-k3, m2, m3 free; m1 weighed): mean 5, SD of a mean of four 1.6. Its
     bound at the information-weighted set must come near that."""
-    from nlp.diagnosis.levels import _level_fit, _shared_stiffness
     rng = np.random.default_rng(5)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k, zeta=0.015)
+    M, C, K = frame_matrices(m, k, zeta=0.015)
     excess, rise = [], []
     for _ in range(4):
-        _write(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng, noise=0.04))
-        _write(tmp_path, "hi.npz", _accelerance(M, C, K, 1, rng, noise=0.01))
-        _case(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
+        write_frf(tmp_path, "lo.npz", _accelerance(M, C, K, 1, rng, noise=0.04))
+        write_frf(tmp_path, "hi.npz", _accelerance(M, C, K, 1, rng, noise=0.01))
+        write_case_yaml(tmp_path, m, k, [("lo.npz", 1)], {"fixed": {"m1": 5.0}},
               {"model": "general", "zeta": 0.015})
         # bin-by-bin FRFs: no analyzer window, so the noise model is the scatter alone
         case = yaml.safe_load((tmp_path / "case.yaml").read_text())
         case["data"]["window"] = "none"
         (tmp_path / "case.yaml").write_text(yaml.safe_dump(case, sort_keys=False))
         cfg = load_case(str(tmp_path / "case.yaml"))
-        ref = _level_fit(cfg, cfg.data.file)
-        lr = _shared_stiffness(ref, _level_fit(cfg, str(tmp_path / "hi.npz"), ref["z"]))
+        ref = level_fit(cfg, cfg.data.file)
+        lr = shared_stiffness(ref, level_fit(cfg, str(tmp_path / "hi.npz"), ref["z"]))
         assert lr["converged"] and lr["held_parameters"] == 5
         assert lr["excess"] == min(lr["bounds"].values())
         excess.append(lr["excess"])
@@ -889,10 +883,9 @@ def test_levels_of_a_linear_frame_share_their_stiffnesses_as_a_chi_square(tmp_pa
 def test_a_release_location_needs_every_other_refit_converged():
     """An unconverged refit's drop is only a lower bound: the largest drop names its story
     only when the others converged, whichever converged itself."""
-    from nlp.diagnosis.levels import _released_story
-    assert _released_story([(5.0, True), (40.0, False), (9.0, True)]) == 1
-    assert _released_story([(5.0, True), (40.0, True), (9.0, False)]) is None
-    assert _released_story([(50.0, True), (40.0, True), (9.0, True)]) == 0
+    assert released_story([(5.0, True), (40.0, False), (9.0, True)]) == 1
+    assert released_story([(5.0, True), (40.0, True), (9.0, False)]) is None
+    assert released_story([(50.0, True), (40.0, True), (9.0, True)]) == 0
 
 
 def test_no_held_out_points_gives_an_empty_residual(tmp_path):
@@ -900,14 +893,14 @@ def test_no_held_out_points_gives_an_empty_residual(tmp_path):
     residual there is empty, not a CasADi map over zero frequencies (held-back 610789/24
     stopped with 'Degenerate map operation')."""
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(0)))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(0)))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "rayleigh", "zeta": 0.015})
     case = assemble(cfg)
-    fit = _windows(cfg, case, 1)
-    pr = _problem(case, _target(case, fit, noise_sigma(case, fit)))
-    r = _normalised(pr, pr.z0, case, np.array([], int), np.zeros((3, 0)))
+    fit = fit_windows(cfg, case, 1)
+    pr = diagnosis_problem(case, fit_target(case, fit, noise_sigma(case, fit)))
+    r = normalised(pr, pr.z0, case, np.array([], int), np.zeros((3, 0)))
     assert r.shape == (3, 0)
 
 
@@ -916,8 +909,6 @@ def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
     a floor's best scan frequency lies within 10 % of a fitted resonance, the best one
     away from all of them is refitted too. Scores here are a stand-in profile: a spike
     at the 2 Hz resonance and a broad bump at 3.5 Hz, between the resonances."""
-    from types import SimpleNamespace
-    import nlp.diagnosis.driver as D
     f = np.linspace(0.5, 12.0, 2301)
     sel = np.concatenate([np.flatnonzero(np.abs(f - fr) <= 0.04 * fr) for fr in (2.0, 5.0, 8.0)])
     case = SimpleNamespace(f=f, selected=sel, model=SimpleNamespace(n=2))
@@ -925,40 +916,39 @@ def test_appendage_scan_adds_a_candidate_away_from_the_resonances(monkeypatch):
     def score(f0):
         return 100.0 * math.exp(-((f0 - 2.0) / 0.05) ** 2) + 40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2)
 
-    monkeypatch.setattr(D, "_problem", lambda *a, **k: None)
-    monkeypatch.setattr(D, "_at", lambda pr, z, v: v[1])
-    monkeypatch.setattr(D, "_score_at", lambda pr, f0, k: (score(f0), 1.0))
-    out = D._scan_secondary(case, None, [], None)
+    monkeypatch.setattr(cand, "diagnosis_problem", lambda *a, **k: None)
+    monkeypatch.setattr(cand, "with_values", lambda pr, z, v: v[1])
+    monkeypatch.setattr(cand, "score_at", lambda pr, f0, k: (score(f0), 1.0))
+    out = cand.scan_secondary(case, None, [], None)
     assert [e.floor for e, _ in out] == [1, 1, 2, 2]
     near, away = out[0][0].f0, out[1][0].f0
     assert abs(near / 2.0 - 1) < 0.1
     assert abs(away / 3.5 - 1) < 0.05
     # a best frequency away from every resonance needs no second candidate
-    monkeypatch.setattr(D, "_score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
-    assert len(D._scan_secondary(case, None, [], None)) == 2
+    monkeypatch.setattr(cand, "score_at", lambda pr, f0, k: (40.0 * math.exp(-((f0 - 3.5) / 0.5) ** 2), 1.0))
+    assert len(cand.scan_secondary(case, None, [], None)) == 2
 
 
 @pytest.mark.parametrize("residual", ["log_magnitude", "complex"])
 def test_signed_residuals_carry_the_objective_chi_square(tmp_path, residual):
-    """The spread of the baseline chi-square (diagnosis.spread) is read from _signed: its sum
+    """The spread of the baseline chi-square (diagnosis.spread) is read from signed: its sum
     of squares must be the chi-square the solver minimises (2 x objective), for the
     log-magnitude residual and for the complex one (real and imaginary parts)."""
-    from nlp.diagnosis.fitting import _signed
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, K = _frame(m, k)
-    _write(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(4)))
-    cfg = _case(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, np.random.default_rng(4)))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
                 {"model": "rayleigh", "zeta": 0.015})
     cfg = replace(cfg, objective=replace(cfg.objective, residual=residual))
     case = assemble(cfg)
-    fit = _windows(cfg, case, 1)
+    fit = fit_windows(cfg, case, 1)
     sig = noise_sigma(case, fit)
-    pr = _problem(case, _target(case, fit, sig), optimize=False)
+    pr = diagnosis_problem(case, fit_target(case, fit, sig), optimize=False)
     z = pr.z0
-    r = _signed(pr, z, case, fit, sig)
+    r = signed(pr, z, case, fit, sig)
     assert r.shape[0] == (6 if residual == "complex" else 3)
     assert np.sum(r ** 2) == pytest.approx(2 * float(pr.objective(z)), rel=1e-6)
     # and the residual map's mean square (ln|Ha/Hx|, or |ln(Ha/Hx)| / sqrt(2) with the phase,
     # equal to first order in the misfit)
-    assert np.mean(r ** 2) == pytest.approx(np.mean(_normalised(pr, z, case, fit, sig) ** 2),
+    assert np.mean(r ** 2) == pytest.approx(np.mean(normalised(pr, z, case, fit, sig) ** 2),
                                             rel=1e-9 if residual == "log_magnitude" else 0.05)

@@ -4,11 +4,14 @@ The cases come from nlp/testing/benchmark.py (3 storeys, 600-s records, H1 FRFs)
 the diagnosis reads only case.yaml and the records; truth is in this file.
 """
 
+from dataclasses import replace
+import hashlib
 import json
 
 import pytest
 
 from nlp.testing.benchmark import make_case
+import nlp.diagnosis.driver as D
 from nlp.case.load import load_case
 from nlp.diagnosis.driver import diagnose
 
@@ -68,7 +71,6 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
     else:
         assert "level_comparison" not in saved
     # provenance: the case file's sha256, recomputed here
-    import hashlib
     prov = json.loads((tmp_path / "out" / "diagnosis.json").read_text())["provenance"]
     case_file = str(tmp_path / "case" / "case.yaml")
     assert prov["files"][case_file]["sha256"] == hashlib.sha256(
@@ -79,7 +81,6 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
 def test_same_diagnosis_on_every_executor(tmp_path):
     """1 worker, the local pool of 2 and a Dask LocalCluster of 2 give the same diagnosis."""
     pytest.importorskip("distributed")
-    from dataclasses import replace
 
     folder = str(tmp_path / "case")
     make_case(folder, {"storeys": 3, "seconds": 600.0, "excitation": "ground",
@@ -110,7 +111,6 @@ def test_level_bound_case_names_the_nonlinearity_and_judges_nothing_linear(tmp_p
     or damper is judged on that level. The threshold is lowered below this case's baseline
     (a stiffening of 0.4 across story 2: reduced chi-square near 2), which the full search
     of the same case would otherwise decorate with a hysteretic loss."""
-    import nlp.diagnosis.driver as D
     monkeypatch.setattr(D, "LEVEL_MISFIT", 1.0)
     lines = []
     folder = str(tmp_path / "case")

@@ -10,12 +10,14 @@ import pytest
 import yaml
 
 from support.frames import frame_parameter_set, shear_K
-from nlp.case.assemble import assemble
+from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
+from nlp.diagnosis.families import BaseFlexibility, extend_parameters, references
 from nlp.errors import InputError
 from nlp.frf.reference import BASE_DOF, channel_frfs
-from nlp.diagnosis.families import BaseFlexibility, extend_parameters, references
-from nlp.solve.problem import UpdatingProblem
+from nlp.model.damping import GeneralDamping
+from nlp.model.nominal import shear_frame
+from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
 
 M_FL = np.array([5.0, 4.5, 4.0])
 K_ST = np.array([4000.0, 3200.0, 2600.0])
@@ -74,7 +76,6 @@ def test_fixed_base_sensor_reads_the_input(tmp_path, backend):
     Ha = channel_frfs(M, shear_K(C_ST), K, 2 * np.pi * f, case.channels)
     np.testing.assert_allclose(Ha[3], 1.0)
     # the symbolic FRF of the NLP agrees
-    from nlp.case.assemble import build_problem
     pr = build_problem(case)
     Hs = pr.channel_frfs(pr.z0, 2 * np.pi * f)
     np.testing.assert_allclose(Hs, Ha, rtol=1e-9, atol=1e-12)
@@ -129,9 +130,6 @@ def _base_over_table(w, m, k, c, m_b, k_b, c_b):
 def test_two_storey_base_channel_is_the_hand_derived_base_over_table():
     """Channel a0 (floor 0) of the BaseFlexibility model equals the closed-form a_b/a_g of
     a 2-storey frame on a base mass, spring and dashpot; the rigid-base model reads 1."""
-    from nlp.model.damping import GeneralDamping
-    from nlp.model.nominal import shear_frame
-    from nlp.solve.problem import Channel, SolverConfig, Target
 
     m, k, c = np.array([4.0, 3.0]), np.array([3000.0, 2400.0]), np.array([2.0, 1.5])
     m_b, k_b, c_b = 2.5, 9000.0, 12.0

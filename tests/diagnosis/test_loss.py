@@ -8,11 +8,11 @@ non-proportional viscous C, 1 % complex noise, written as an FRF file.
 import numpy as np
 import pytest
 
-from nlp.diagnosis.driver import _loss_check
+from nlp.diagnosis.checks import loss_check
 from nlp.diagnosis.evidence import BIC_TIE
 from nlp.diagnosis.loss import loss_decision, loss_row
 from nlp.diagnosis.priors import story_patterns
-from support.diagnosis import F, baseline, frame, frf_case, write_frf
+from support.diagnosis import F, baseline_fit, frame_matrices, write_case_yaml, write_frf
 
 
 def _frf(M, C, K, Kh, floor, rng, noise=0.01):
@@ -66,15 +66,15 @@ def test_loss_found_with_its_value_and_none_in_viscous_damping(tmp_path):
     needed; without it (the same viscous C) it finds none."""
     rng = np.random.default_rng(11)
     m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
-    M, C, K = frame(m, k, zeta=0.01)
+    M, C, K = frame_matrices(m, k, zeta=0.01)
     C = C + sum(c * P for c, P in zip([1.5, 0.5, 4.0, 1.0], story_patterns(4)))
     out = {}
     for eta in (0.03, 0.0):
         write_frf(tmp_path, "frf.npz", _frf(M, C, K, eta * K, 2, rng))
-        cfg = frf_case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
-                       {"model": "general", "zeta": 0.01}, channels=4)
-        case, state = baseline(cfg)
-        out[eta] = _loss_check(case, state, [], lambda s: None)
+        cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
+                    {"model": "general", "zeta": 0.01}, channels=4)
+        case, state = baseline_fit(cfg)
+        out[eta] = loss_check(case, state, [], lambda s: None)
     found = out[0.03]["findings"]
     assert len(found) == 1 and found[0]["location"] == {}, out[0.03]["rows"]
     v, se = found[0]["parameters"]["eta"], found[0]["uncertainty"]["eta"]
@@ -91,14 +91,14 @@ def test_window_smoothing_of_an_frf_file_is_not_a_loss(tmp_path):
     in, this frame at 0.4 % damping shows a loss)."""
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 4.5, 4.0, 4.0]), np.array([3200.0, 3000.0, 2700.0, 2400.0])
-    M, C, K = frame(m, k, zeta=0.004)
+    M, C, K = frame_matrices(m, k, zeta=0.004)
     C = C + sum(c * P for c, P in zip([0.5, 0.2, 1.0, 0.3], story_patterns(4)))
     H = _frf(M, C, K, 0 * K, 2, rng, noise=0.0)
     H[:, 1:-1] = 0.25 * H[:, :-2] + 0.5 * H[:, 1:-1] + 0.25 * H[:, 2:]
     H *= 1 + 0.01 * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
     write_frf(tmp_path, "frf.npz", H)
-    cfg = frf_case(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
-                   {"model": "general", "zeta": 0.01}, channels=4)
-    case, state = baseline(cfg)
-    out = _loss_check(case, state, [], lambda s: None)
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
+                {"model": "general", "zeta": 0.01}, channels=4)
+    case, state = baseline_fit(cfg)
+    out = loss_check(case, state, [], lambda s: None)
     assert out["converged"] and out["findings"] == [], out["rows"]

@@ -361,7 +361,6 @@ def test_cache_key_separates_values_and_optimisation(tmp_path, monkeypatch):
 def test_inverted_sensor_is_flagged_by_the_replay(tmp_path):
     """An accelerometer mounted upside down: |H| (the fit) cannot see it, the time-domain
     replay anti-correlates with its record, and the run says: likely a sign or unit error."""
-    import shutil
     import yaml
     t, cols, _ = make_shake_table(seed=5)
     cols["acc4"] = -cols["acc4"]

@@ -5,7 +5,6 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 
 from nlp.output.report import fmt_percent, fmt_value, write_report
 

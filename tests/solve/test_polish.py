@@ -3,7 +3,11 @@
 import numpy as np
 from scipy.optimize import least_squares
 
+from nlp.case.assemble import assemble
+from nlp.case.load import load_case
+from nlp.diagnosis.fitting import diagnosis_problem
 from nlp.solve.polish import newton_polish
+from nlp.solve.problem import UpdatingProblem
 from support.cases import write_case
 
 
@@ -106,10 +110,6 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     """A diagnosis refit capped below the case's iteration limit stops unconverged and
     is left so (it is continued when adopted); the same NLP without the cap is finished
     by Newton steps when IPOPT stops at its limit."""
-    from nlp.diagnosis import driver as D
-    from nlp.case.assemble import assemble
-    from nlp.case.load import load_case
-    from nlp.solve.problem import UpdatingProblem
     path, _ = write_case(str(tmp_path), noise=0.02, seed=1,
                          frequencies={"method": "half_power", "k": 2.0, "fmax": 7.0})
     case = assemble(load_case(path))
@@ -121,11 +121,11 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
         return real(self, *a)
 
     monkeypatch.setattr(UpdatingProblem, "_polish", counted)
-    capped = D._problem(case, case.target, compile=False, max_iter=2)
+    capped = diagnosis_problem(case, case.target, compile=False, max_iter=2)
     res = capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert not capped.polish_unconverged and calls == []
     assert res.status == "Maximum_Iterations_Exceeded" and not res.success
     capped.polish_unconverged = True     # the uncapped rule on the same stop
     capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert calls == [True]
-    assert D._problem(case, case.target, compile=False).polish_unconverged
+    assert diagnosis_problem(case, case.target, compile=False).polish_unconverged

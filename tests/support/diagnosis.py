@@ -7,14 +7,15 @@ from scipy.linalg import eigh
 
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
-from nlp.diagnosis.fitting import _problem, _search, _target, _windows, noise_sigma
+from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, noise_sigma,
+                                   scatter_best)
 from nlp.solve.search import SearchConfig
 from nlp.testing.frames import shear_K
 
 F = np.arange(0.5, 16.0, 0.02)     # the FRF files' frequencies [Hz]
 
 
-def frf_case(folder, m_nom, k_nom, files, parameters, damping, channels=3):
+def write_case_yaml(folder, m_nom, k_nom, files, parameters, damping, channels=3):
     """Write case.yaml for the FRF files [(name, force floor)] (first is the update)."""
     data = {"file": files[0][0],
             "channels": [{"name": f"a{i + 1}", "floor": i + 1, "output": "accelerance",
@@ -37,7 +38,7 @@ def write_frf(folder, name, H):
     np.savez(folder / name, f=F, H=H)
 
 
-def frame(m, k, zeta=0.015):
+def frame_matrices(m, k, zeta=0.015):
     """M, C, K of a shear frame with Rayleigh damping of ratio zeta at modes 1 and n."""
     M, K = np.diag(m), shear_K(k)
     w = np.sqrt(eigh(K, M, eigvals_only=True))
@@ -46,11 +47,11 @@ def frame(m, k, zeta=0.015):
     return M, a0 * M + a1 * K, K
 
 
-def baseline(cfg, starts=6):
+def baseline_fit(cfg, starts=6):
     """The case's own general-C fit on its half-power windows (a short scatter search)."""
     case = assemble(cfg)
-    fit = _windows(cfg, case, 1)
-    target = _target(case, fit, noise_sigma(case, fit))
-    pr = _problem(case, target)
-    res, _ = _search(pr, SearchConfig(starts=starts, seed=0, workers=1))
+    fit = fit_windows(cfg, case, 1)
+    target = fit_target(case, fit, noise_sigma(case, fit))
+    pr = diagnosis_problem(case, target)
+    res, _ = scatter_best(pr, SearchConfig(starts=starts, seed=0, workers=1))
     return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}

@@ -1,0 +1,292 @@
+"""The verdict of a look: adequate, missing_physics or ambiguous, with its statements.
+
+The verdict and diagnosis.json are built from the stages' data (nlp.diagnosis.look);
+ambiguous verdicts name the measurement that would separate the candidates (SUGGESTIONS).
+"""
+
+import os
+
+from nlp.diagnosis.decide import adequate, where
+from nlp.diagnosis.evidence import BIC_TIE, undetermined
+from nlp.diagnosis.fitting import residual_map
+from nlp.diagnosis.look import Conclusion
+from nlp.diagnosis.plots import plot_diagnosis
+from nlp.frf.noise import describe as describe_noise
+from nlp.output.provenance import provenance
+from nlp.output.results import write_json
+
+SUGGESTIONS = {
+    "added_mass": "weigh the floor, or repeat the test with a known added mass",
+    "base_flexibility": "a sensor on the base (table) to measure the base motion directly",
+    "secondary_oscillator": "a sensor on the suspected appendage, or a shaker at another floor",
+    "local_damper": "a second excitation level or a wider frequency band around the higher modes",
+    "hysteretic_damping": "the phase of the FRFs over a wide band (viscous and hysteretic loss "
+                          "differ in phase off resonance)",
+    "nonadjacent_coupling": "a second shaker position (force at another floor)",
+    "sensor_gain": "a calibration check of that sensor, or a second sensor on the same floor",
+    "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
+    "nonlinearity": "the same test at a second excitation level",
+}
+
+WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
+         "secondary_oscillator": "a secondary oscillator (appendage)",
+         "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic damping",
+         "nonadjacent_coupling": "a stiffness coupling (non-shear behaviour)",
+         "sensor_gain": "a sensor gain error", "sensor_delay": "a sensor time delay"}
+
+
+def statement(r):
+    """One sentence naming a finding r (public form): family, location, values."""
+    loc = r["location"]
+    if "floor" in loc:
+        where = f"at floor {loc['floor']}"
+    elif "between" in loc:
+        a, b = loc["between"]
+        where = f"between {'the ground' if a == 0 else f'floor {a}'} and floor {b}"
+    elif "channel" in loc:
+        where = f"on channel {loc['channel']}"
+    else:
+        where = "of the whole structure"
+    pars = ", ".join(f"{k} = {v:.4g} +- {r['uncertainty'][k]:.2g}"
+                     for k, v in r["parameters"].items())
+    if r.get("not_determined"):
+        pars += "; not determined by the data: " + ", ".join(r["not_determined"])
+    return f"The data show {WORDS[r['physics']]} {where} ({pars})."
+
+
+def public(r):
+    """A refit result as diagnosis.json reports it: values, errors, evidence, statement."""
+    d = {k: r[k] for k in ("physics", "location", "parameters", "uncertainty")}
+    names = list(r["parameters"])
+    open_ = undetermined(r["physics"], names, [r["parameters"][n] for n in names],
+                         [r["uncertainty"][n] for n in names])
+    if open_:
+        # reported without a value: its error exceeds it (nlp.diagnosis.evidence.NUISANCE)
+        d["parameters"] = {n: v for n, v in r["parameters"].items() if n not in open_}
+        d["uncertainty"] = {n: v for n, v in r["uncertainty"].items() if n not in open_}
+        d["not_determined"] = open_
+    d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
+                     "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
+                     "raw_delta_chi2": r.get("raw_delta_chi2"),
+                     "significant": r.get("significant", True),
+                     "held_out_excess": r.get("held_excess"),
+                     "converged": r.get("converged", True)}
+    if r.get("split"):
+        d["evidence"]["resolution"] = r["split"]
+    d["statement"] = statement(d)
+    return d
+
+
+def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate):
+    """The verdict. Candidates that cannot be told apart, or findings that do not hold
+    on the case's other tests, with nothing else found, make it "ambiguous": an
+    inadequate model is said so, never turned into one confident finding. (Ties after
+    a confirmed finding are reported as what remains, next to it.)"""
+    if (indistinct or unconfirmed) and not confirmed and not nonlin and not inside:
+        return "ambiguous"
+    if confirmed or nonlin or inside:
+        return "missing_physics"
+    return "adequate" if adequate else "ambiguous"
+
+
+
+
+
+def _fit_summary(base, state, k, nonlin_found, nonlin, found):
+    """fit.before and fit.after of diagnosis.json: chi-squares of the baseline and of the
+    final model (k more parameters); for a nonlinearity named alone, the other level's
+    held-out misfit with each level's model."""
+    nu = base.nu
+    fit_before = {"objective": base.res.f, "reduced_chi2": base.chi / nu,
+                  "held_out_chi2": base.held, "converged": base.converged,
+                  "reduced_chi2_sd": base.spread[0], "effective_points": base.spread[1]}
+    fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
+                 "held_out_chi2": state["held"]}
+    if nonlin_found and not found:
+        before_o, after_o = nonlin["held_out"]
+        fit_before["other_level_held_out_chi2"] = before_o
+        fit_after = dict(fit_before, other_level_held_out_chi2=after_o)
+    return fit_before, fit_after
+
+
+def _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found):
+    """The measurements that would separate the candidates or settle what remains."""
+    suggestions = []
+    if verdict == "ambiguous":
+        group = sel.indistinct or unconfirmed or sel.tried[:2]
+        suggestions = list(dict.fromkeys(SUGGESTIONS[r["physics"]] for r in group))
+    if not nonlin_found and not cfg.data.level_files and (verdict == "ambiguous" or remaining):
+        suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
+    if not describe_noise(case.noise)["measured"]:
+        suggestions.append("store the coherence and the number of averages with the FRF"
+                           if case.records is None else
+                           "record a quiet stretch before and after the excitation")
+    return suggestions
+
+
+def _level_statements(base, nonlin, level_bound):
+    """The named nonlinearity first; for a level-bound case, why nothing linear is judged."""
+    out = [nonlin["found"]["statement"]]
+    if level_bound:
+        out.append(f"No linear model fits the reference level (reduced chi-square "
+                   f"{base.chi / base.nu:.1f}, {base.held:.1f} on the held-out shoulders): the "
+                   "level dependence is there too, so no linear candidate, prior or "
+                   "damper is judged on it.")
+    return out
+
+
+def _tie_statements(sel):
+    """Candidates that cannot be told apart, and better ones the data cannot resolve."""
+    out = []
+    indistinct = sel.indistinct
+    if indistinct:
+        phi = indistinct[0].get("phi", 1.0)
+        out.append(
+            "The model is inadequate here, and these candidates cannot be told apart: "
+            + "; ".join(f"{where(r)} (dBIC {r['delta_bic']:.1f})" for r in indistinct)
+            + f" (within {BIC_TIE:g} of each other in BIC with the chi-square divided by the "
+            f"remaining misfit, phi = {phi:.1f}, and alike on the held-out points)."
+            + (" They are candidates for what remains after the findings above."
+               if sel.found else ""))
+    for r in sel.unresolved:
+        sp = r["split"]
+        out.append(
+            f"{where(r)} explains the data better than {r['instead_of']} (dBIC "
+            f"{r['delta_bic']:.1f}, held-out {r['held_out']:.2f}), but its mode at "
+            f"{sp['appendage_mode_hz']:.3f} Hz lies {sp['separation_hz']:.3f} Hz from the mode at "
+            f"{sp['nearest_mode_hz']:.3f} Hz, inside their half-power bands or the resolution: the data "
+            f"do not show it as a resonance of its own, so it is not named, and "
+            f"{r['instead_of']} may stand in for it.")
+    return out
+
+
+def _unconfirmed_statements(cfg, unconfirmed, verdict):
+    """Findings that do not hold on another test of the structure."""
+    out = []
+    for r in unconfirmed:
+        for c in (c for c in r.get("records", []) if not c["holds"]):
+            there = ", ".join(f"{n} = {v:.4g} +- {c['there_uncertainty'][n]:.2g}"
+                              for n, v in c["there"].items())
+            out.append(
+                f"{statement(r)[:-1]} on {os.path.basename(cfg.data.file)}, but it does not hold on "
+                f"{c['test']} ({there}): {c['reason']}. It is not accepted.")
+    if unconfirmed and verdict == "ambiguous":
+        out.append("The model is inadequate here: no candidate holds on every test of "
+                   "this structure, so none can be named (not confirmed by the other "
+                   "tests: "
+                   + "; ".join(where(r) for r in unconfirmed) + ").")
+    return out
+
+
+def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole):
+    """What remains unexplained, parameter changes and extra modes."""
+    out = []
+    if remaining:
+        out.append("With this added, residuals are still above the noise: more is "
+                   "missing than the candidate families describe.")
+    if verdict == "ambiguous" and not sel.found and not sel.indistinct and not unconfirmed:
+        out.append("The model does not explain the data within the noise, and no "
+                   "candidate family explains the mismatch.")
+    for o in inside["parameter_changes"]:
+        out.append(o["statement"])
+    if whole and whole["extra_modes"]:
+        out.append("Resonances the model does not have (extra modes): " + "; ".join(
+            f"{e['frequency_hz']:.2f} Hz (seen by {', '.join(e['channels'])})"
+            for e in whole["extra_modes"]) + ".")
+    return out
+
+
+def _alternatives(found, alternatives):
+    """Accepted candidates not adopted, best first, one per family and location."""
+    alts, seen = [], {(r["physics"], repr(r["location"])) for r in found}
+    for r in sorted(alternatives, key=lambda r: r["delta_bic"]):
+        key = (r["physics"], repr(r["location"]))
+        if key not in seen:
+            seen.add(key)
+            alts.append(r)
+    return alts
+
+
+def _optional_parts(result, screening, checks, nonlin, nonlin_found):
+    """The screening, phase and loss checks and the level comparison, when they were made."""
+    if screening is not None:
+        result["screening"] = screening
+    if checks.phase is not None:
+        result["phase_check"] = checks.phase["channels"]
+    if checks.loss is not None:
+        result["loss_check"] = {k: v for k, v in checks.loss.items() if k != "findings"}
+    if nonlin is not None:
+        # written whether or not a nonlinearity was named, so a miss can be read from the file
+        result["level_comparison"] = {"found": nonlin_found, "max_z": nonlin["max_z"],
+                                      "shared_stiffness": nonlin.get("shared_stiffness"),
+                                      "harmonics": nonlin.get("harmonics")}
+
+
+def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, screening, log):
+    """The verdict of one look and its diagnosis.json (a Conclusion; not yet written)."""
+    state, found, inside = sel.state, sel.found, checks.inside
+    unconfirmed = checks.unconfirmed
+    nonlin_found = bool(nonlin and nonlin["found"])
+    verdict = classify(found, unconfirmed, sel.indistinct, nonlin_found, inside["findings"],
+                       adequate(base.chi, base.nu, base.held))
+    improved, z_imp = state["problem"], state["z"]
+    cells_after, _, _ = residual_map(case, improved, z_imp, points.fit, points.held,
+                                     points.sig_fit, points.sig_held)
+    k = improved.params.n_z - points.base.params.n_z
+    fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
+    remaining = bool(found) and not adequate(state["chi"], max(base.nu - k, 1), state["held"])
+    findings = [public(r) for r in found] + inside["findings"]
+    statements = [f["statement"] for f in findings]
+    if nonlin_found:
+        findings.insert(0, nonlin["found"])
+        statements[:0] = _level_statements(base, nonlin, level_bound)
+    suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found)
+    statements += _tie_statements(sel)
+    statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
+    statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, checks.whole)
+    alts = _alternatives(found, sel.alternatives)
+    whole = checks.whole
+    result = {"verdict": verdict, "findings": findings,
+              "alternatives": [public(r) for r in alts],
+              "indistinguishable": [public(r) for r in sel.indistinct],
+              "unconfirmed": [public(r) for r in unconfirmed],
+              "unresolved_better": [dict(public(r), instead_of=r["instead_of"])
+                                    for r in sel.unresolved],
+              "consistency": checks.consistency,
+              "absorbed": inside["absorbed"],
+              "parameter_changes": inside["parameter_changes"],
+              "fitted_parameters": inside["parameters"],
+              "damping_decomposition": inside["damping"],
+              "summary": statements, "remaining_mismatch": remaining,
+              "evidence_scale": {"phi": sel.phis[0] if sel.phis else 1.0},
+              "fit": {"before": fit_before, "after": fit_after},
+              "residual_map": {"before": base.cells, "after": cells_after},
+              "whole_band": whole,
+              "extra_modes": whole["extra_modes"] if whole else [],
+              "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
+              "provenance": provenance(cfg)}
+    _optional_parts(result, screening, checks, nonlin, nonlin_found)
+    _log_verdict(log, verdict, statements, alts, suggestions, fit_before, fit_after)
+    return Conclusion(result, case, points.base, base.res.z, improved, z_imp, base.cells,
+                      cells_after, " + ".join(r["physics"] for r in found) if found else None)
+
+
+def _log_verdict(log, verdict, statements, alts, suggestions, fit_before, fit_after):
+    log(f"verdict: {verdict}")
+    for st in statements:
+        log("  " + st)
+    if alts:
+        log("  alternatives: " + "; ".join(where(a) for a in alts))
+    for sg in suggestions:
+        log(f"  suggested measurement: {sg}")
+    log(f"  fit before: reduced chi-square {fit_before['reduced_chi2']:.2f}, held-out "
+        f"{fit_before['held_out_chi2']:.2f}; after: {fit_after['reduced_chi2']:.2f}, "
+        f"{fit_after['held_out_chi2']:.2f}")
+
+
+def write_conclusion(out, c):
+    """Write a look's figures and out/diagnosis.json."""
+    os.makedirs(out, exist_ok=True)
+    plot_diagnosis(out, c.case, c.base, c.z_base, c.improved, c.z_improved, c.cells_before,
+                   c.cells_after, c.family)
+    write_json(os.path.join(out, "diagnosis.json"), c.result)
