@@ -1,4 +1,4 @@
-"""One baseline solve of a diagnosis with and without the Newton polish (nlp/polish.py).
+"""One baseline solve of a diagnosis with and without the Newton polish (nlp/solve/polish.py).
 
     python scripts/bench_polish.py CASE.yaml [--solves 2]
 
@@ -13,7 +13,7 @@ seconds, f (= chi-square / 2), the status, and the Gauss-Newton decrement at the
 import argparse
 import time
 
-from nlp.diagnosis import driver as dg
+from nlp.diagnosis.fitting import diagnosis_problem, fit_target, fit_windows, noise_sigma
 from nlp.solve import problem as pm
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
@@ -21,7 +21,7 @@ from nlp.solve.executors.threads import limit_blas_threads
 
 
 def run(label, case, target, solves):
-    pr = dg._problem(case, target)
+    pr = diagnosis_problem(case, target)
     z = pr.z0
     for k in range(solves):
         t0 = time.perf_counter()
@@ -40,8 +40,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     cfg = load_case(args.case)
     case = assemble(cfg)
-    fit = dg._windows(cfg, case, 1)
-    target = dg._target(case, fit, dg.noise_sigma(case, fit))
+    fit = fit_windows(cfg, case, 1)
+    target = fit_target(case, fit, noise_sigma(case, fit))
     print(f"{args.case}: {len(case.channels)} channels x {len(fit)} frequencies")
     keep = pm.MAX_PARAMETERS
     pm.MAX_PARAMETERS = 0          # no stall stop, no polish: IPOPT alone
