@@ -26,6 +26,7 @@ from nlp.frf.noise import noise_model, sigma_ln
 from nlp.frf.reference import BASE_DOF
 from nlp.model.nominal import StructuralModel
 from nlp.model.parameters import ParameterSet
+from nlp.output.progress import stage
 from nlp.solve.identify import SCALE_EXPLANATION, scale_null_space
 from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
 
@@ -144,13 +145,15 @@ def build_problem(case, centre=None):
     cfg = case.config
     solver = SolverConfig(cfg.solver.name, dict(cfg.solver.options), cfg.solver.compile)
     try:
-        backend = choose_backend(cfg.model.frf_backend, case.model.n)
-        basis, info = _reduced_basis(case, centre) if backend == "reduced" else (None, None)
-        problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
-                                  residual=cfg.objective.residual, solver=solver,
-                                  total_mass=cfg.parameters.total_mass, frf_backend=backend,
-                                  basis=basis)
-        problem.reduced_info = info
+        with stage("build NLP") as bar:
+            backend = choose_backend(cfg.model.frf_backend, case.model.n)
+            basis, info = _reduced_basis(case, centre) if backend == "reduced" else (None, None)
+            problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                      residual=cfg.objective.residual, solver=solver,
+                                      total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                      basis=basis)
+            problem.reduced_info = info
+            bar.update()
     except RuntimeError as exc:
         if "option" not in str(exc).lower():  # not the user's options: a real failure
             raise

@@ -17,6 +17,7 @@ import warnings
 
 import casadi as ca
 
+from nlp.output.progress import stage
 from nlp.output.provenance import sha256_file as _sha256
 
 __all__ = ["cache_dir", "compile_library"]
@@ -71,8 +72,10 @@ def compile_library(functions, stem="frfnlp", optimize=True):
             with open(c_file, "w") as fh:
                 fh.write(src)
             tmp_lib = os.path.join(tmp, "lib.so")
-            subprocess.run([compiler, *flags, c_file, "-o", tmp_lib, "-lm"],
-                           check=True, capture_output=True, timeout=600)
+            with stage("compile C", unit="library") as bar:
+                subprocess.run([compiler, *flags, c_file, "-o", tmp_lib, "-lm"],
+                               check=True, capture_output=True, timeout=600)
+                bar.update()
             if not _loads(tmp_lib, probe):
                 raise OSError("the freshly compiled library does not load")
             tmp_sum = os.path.join(tmp, "lib.sha256")

@@ -23,7 +23,6 @@ re-solved at the full tolerance before the best is chosen.
 from collections import Counter
 from dataclasses import dataclass, fields, replace
 import os
-import sys
 import time
 
 import numpy as np
@@ -31,6 +30,7 @@ from scipy.spatial.distance import cdist
 from scipy.stats import qmc
 
 from nlp.errors import SearchFailed
+from nlp.output.progress import note, stage
 from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
 from nlp.solve.problem import LocalResult
 from nlp.solve.stopping import LIMIT_STATUSES
@@ -244,7 +244,7 @@ def _solve_item(problem, item):
 POLISH = 10  # screened starts re-solved at the full tolerance: the lowest converged ones
 
 
-def _polish(problem, results):
+def _polish(problem, results, show=True):
     """Re-solve the POLISH lowest converged screened starts with the full tolerance,
     from where screening stopped; returns their start indices.
 
@@ -256,30 +256,33 @@ def _polish(problem, results):
     if not getattr(problem, "can_screen", False):
         return ()
     top = sorted((r.f, i) for i, r in results.items() if r.success)[:POLISH]
-    for _, i in top:
-        if str(results[i].status).startswith("Stationary"):
-            # stationary by the Newton test at the screening stop: a full-tolerance
-            # IPOPT re-solve only creeps to its iteration limit again (measured on a blind
-            # 5-storey null case: re-solving them, the diagnosis had finished only its
-            # first round of refits after 7.5 min; skipping them, all of it took 7 min 41 s)
-            continue
-        r = results[i]
-        p = solve_start(problem, r.z)
-        if p.success:
-            results[i] = replace(p, z0=r.z0, iterations=r.iterations + p.iterations,
-                                 seconds=r.seconds + p.seconds)
+    with stage("polishing", total=len(top), unit="start", show=show) as bar:
+        for _, i in top:
+            _polish_one(problem, results, i)
+            bar.update()
+            bar.note(_start_line("polished start", i, results[i]))
     return tuple(sorted(i for _, i in top))
 
 
-def _progress(done, total, best_f, stream):
-    if stream is None:
+def _polish_one(problem, results, i):
+    """Re-solve start i at the full tolerance unless its screened result is stationary."""
+    if str(results[i].status).startswith("Stationary"):
+        # stationary by the Newton test at the screening stop: a full-tolerance
+        # IPOPT re-solve only creeps to its iteration limit again (measured on a blind
+        # 5-storey null case: re-solving them, the diagnosis had finished only its
+        # first round of refits after 7.5 min; skipping them, all of it took 7 min 41 s)
         return
-    width = 30
-    filled = int(width * done / max(total, 1))
-    bar = "#" * filled + "." * (width - filled)
-    end = "\n" if done == total else ""
-    stream.write(f"\r  local solves [{bar}] {done}/{total}  best f = {best_f:.4g}{end}")
-    stream.flush()
+    r = results[i]
+    p = solve_start(problem, r.z)
+    if p.success:
+        results[i] = replace(p, z0=r.z0, iterations=r.iterations + p.iterations,
+                             seconds=r.seconds + p.seconds)
+
+
+def _start_line(what, i, res):
+    """One start's line on a terminal: iterations, objective, seconds, solver status."""
+    return (f"  {what} {i}: {res.iterations} iterations, f = {res.f:.6g}, "
+            f"{res.seconds:.2f} s, {res.status}")
 
 
 def _failure_summary(results):
@@ -287,14 +290,14 @@ def _failure_summary(results):
     return ", ".join(f"{n} {s}" for s, n in counts.most_common(5))
 
 
-def scatter_search(problem, config=SearchConfig(), progress=None, executor=None, setup=None,
+def scatter_search(problem, config=SearchConfig(), progress=True, executor=None, setup=None,
                    checkpoint=None):
     """Run the scatter search on an :class:`nlp.solve.problem.UpdatingProblem`.
 
     Parameters
     ----------
-    progress : a text stream for a progress bar (default: stderr when it is a
-        terminal).
+    progress : show the starts and the polishing on stderr when it is a terminal
+        (:mod:`nlp.output.progress`); False never does.
     executor : an :class:`nlp.solve.executors.Executor`; default: one made from
         ``config`` (executor, workers, scheduler) and closed at the end.
     setup : an :class:`nlp.solve.executors.Setup` that rebuilds ``problem`` in another
@@ -308,14 +311,12 @@ def scatter_search(problem, config=SearchConfig(), progress=None, executor=None,
     only when none of them converged. :class:`nlp.errors.SearchFailed` is
     raised when the search finished and no start converged.
     """
-    if progress is None:
-        progress = sys.stderr if sys.stderr.isatty() else None
     t0 = time.perf_counter()
     setup = setup or Setup(value=problem)
     with interrupts_as_keyboard() as guard:
         run = _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
         with guard.deferred(swallow=True):  # a few solves; a Ctrl-C now waits for them
-            polished = _polish(problem, run.results)
+            polished = _polish(problem, run.results, progress)
     results = run.results
     indices = sorted(results)
     ordered = [results[i] for i in indices]
@@ -352,16 +353,10 @@ def _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
             results = checkpoint.open(problem, config, starts)
         resumed = len(results)
         todo = [(i, starts[i]) for i in range(len(starts)) if i not in results]
-        best_f = min([r.f for r in results.values() if r.success] or [np.inf])
         stream = executor.stream(setup, _solve_item, todo)
-        for i, res in stream:
-            with guard.deferred():  # a received start is always recorded
-                results[i] = res
-                if checkpoint is not None:
-                    checkpoint.append(i, res)
-                if res.success:
-                    best_f = min(best_f, res.f)
-                _progress(len(results), len(starts), best_f, progress)
+        with stage("local solves", total=len(starts), unit="start", initial=resumed,
+                   show=progress) as bar:
+            _collect(stream, results, checkpoint, guard, bar)
     except KeyboardInterrupt:
         if stream is None:  # nothing was started: nothing to keep
             raise
@@ -371,8 +366,7 @@ def _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
                 results.setdefault(i, res)
                 if checkpoint is not None:
                     checkpoint.append(i, res)
-            if progress is not None:
-                progress.write(f"\n  interrupted: keeping {len(results)} finished starts\n")
+            note(f"  interrupted: keeping {len(results)} finished starts", progress)
     finally:
         with guard.deferred(swallow=True):
             if stream is not None:
@@ -382,6 +376,20 @@ def _solve_starts(problem, config, executor, setup, checkpoint, progress, guard)
             if checkpoint is not None:
                 checkpoint.close()
     return _StartsRun(results, n_trial, len(starts), resumed, interrupted)
+
+
+def _collect(stream, results, checkpoint, guard, bar):
+    """Record each start as it arrives (results, checkpoint) and show it on the bar."""
+    best_f = min([r.f for r in results.values() if r.success] or [np.inf])
+    for i, res in stream:
+        with guard.deferred():  # a received start is always recorded
+            results[i] = res
+            if checkpoint is not None:
+                checkpoint.append(i, res)
+            if res.success:
+                best_f = min(best_f, res.f)
+            bar.update(best_f=f"{best_f:.4g}")
+            bar.note(_start_line("start", i, res))
 
 
 def _best(problem, results, indices, ordered, interrupted):
