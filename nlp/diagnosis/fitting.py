@@ -101,7 +101,7 @@ def scatter_best(problem, config, setup=None):
     converged is False (diagnosis.json says so)."""
     kept = _Kept()
     try:
-        return scatter_search(problem, config, checkpoint=kept,
+        return scatter_search(problem, config, progress=None, checkpoint=kept,
                               setup=setup).best, True
     except SearchFailed:
         finite = [r for r in kept.results.values() if np.isfinite(r.f)]

@@ -290,14 +290,14 @@ def _failure_summary(results):
     return ", ".join(f"{n} {s}" for s, n in counts.most_common(5))
 
 
-def scatter_search(problem, config=SearchConfig(), progress=True, executor=None, setup=None,
+def scatter_search(problem, config=SearchConfig(), progress=None, executor=None, setup=None,
                    checkpoint=None):
     """Run the scatter search on an :class:`nlp.solve.problem.UpdatingProblem`.
 
     Parameters
     ----------
-    progress : show the starts and the polishing on stderr when it is a terminal
-        (:mod:`nlp.output.progress`); False never does.
+    progress : None (default) shows the starts and the polishing on stderr when it is a
+        terminal (:mod:`nlp.output.progress`); False never does.
     executor : an :class:`nlp.solve.executors.Executor`; default: one made from
         ``config`` (executor, workers, scheduler) and closed at the end.
     setup : an :class:`nlp.solve.executors.Setup` that rebuilds ``problem`` in another
@@ -311,6 +311,7 @@ def scatter_search(problem, config=SearchConfig(), progress=True, executor=None,
     only when none of them converged. :class:`nlp.errors.SearchFailed` is
     raised when the search finished and no start converged.
     """
+    progress = progress is not False
     t0 = time.perf_counter()
     setup = setup or Setup(value=problem)
     with interrupts_as_keyboard() as guard:
