@@ -46,6 +46,7 @@ from nlp.diagnosis.spread import chi2_spread
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
 from nlp.diagnosis.widen import WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak
 from nlp.frf.noise import describe as describe_noise
+from nlp.output.progress import advance, steps
 from nlp.output.results import write_json
 from nlp.solve.executors import Setup
 from nlp.solve.search import SearchConfig
@@ -61,6 +62,7 @@ __all__ = ["diagnose", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
 # shoulders, and searches of 600-900 s that named appendages which did not hold on the
 # other level; see docs/method/diagnosis.md).
 LEVEL_MISFIT = 10.0
+STAGES = ("screen", "points", "baseline", "levels", "selection", "widen", "checks", "verdict")
 BASELINE_STARTS = 20   # least scatter-search starts of the baseline: a poor optimum there
                        # would make any added parameter look useful
 
@@ -74,15 +76,17 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
     round, doubled for close scores). widen: the first look's windows, in half-power
     bandwidths; only a first look of 1 may widen (nlp.diagnosis.widen).
     """
-    case = assemble(cfg)
-    screening = None
-    if widen == 1:
-        screening = screen_stage(case, out, log)
-        if screening["verdict"] == "setup_error":
-            return screening
-        screening = screening["report"]
-    conclusion = first_look(cfg, case, Options(top, max_findings), widen, screening, log)
-    write_conclusion(out, conclusion)
+    with steps("diagnose", len(STAGES)) as bar:
+        log = bar.around(log)
+        case = assemble(cfg)
+        screening = None
+        if widen == 1:
+            screening = screen_stage(case, out, log)
+            if screening["verdict"] == "setup_error":
+                return screening
+            screening = screening["report"]
+        conclusion = first_look(cfg, case, Options(top, max_findings), widen, screening, log)
+        write_conclusion(out, conclusion)
     return conclusion.result
 
 
@@ -92,6 +96,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     widened look (when it stands) or this look's checks and verdict."""
     points = points_stage(cfg, case, widen, (), log)
     base = baseline_stage(cfg, case, points, None, log)
+    advance("diagnose", "levels")
     nonlin = nonlinearity(cfg, log)
     level_bound = level_stage(base, nonlin, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, None, opts, log)
@@ -117,6 +122,7 @@ def widened_look(cfg, opts, nonlin, hot, seed, log):
 def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
     """The widened look's Conclusion when the first look's windows miss the mismatch and
     the wider look stands; None when the first look stands."""
+    advance("diagnose", "widen")
     if off_peak(base, sel):
         log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
@@ -143,6 +149,7 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
 def conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log):
     """Checks of the final model and the verdict of one look."""
     checks = checks_stage(cfg, case, points, base, sel, level_bound, log)
+    advance("diagnose", "verdict")
     return verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound,
                          screening, log)
 
@@ -152,6 +159,7 @@ def screen_stage(case, out, log):
     """Screen the data before fitting (nlp.diagnosis.screen). A case that contradicts its
     data gets the verdict setup_error, written to out/diagnosis.json; otherwise
     {"verdict": None, "report": the screening} for the diagnosis to carry."""
+    advance("diagnose", "screen")
     report = screen(case)
     for w in report["warnings"]:
         log(f"screening: {w['message']}")
@@ -169,6 +177,7 @@ def screen_stage(case, out, log):
 def points_stage(cfg, case, widen, hot, log):
     """The fitted windows (widen x the case's half-power bandwidths, plus windows at the
     hot frequencies), the held-out shoulders (3x wider, not fitted), and the target."""
+    advance("diagnose", "points" if widen == 1 else "points (widened look)")
     fit = fit_windows(cfg, case, widen)
     held = fit_windows(cfg, case, 3 * widen)
     if hot:
@@ -184,6 +193,7 @@ def points_stage(cfg, case, widen, hot, log):
 def baseline_stage(cfg, case, points, seed, log):
     """The case's own model at its optimum: a scatter search, or (seeded) a solve from
     the first look's optima."""
+    advance("diagnose", "baseline")
     pr = points.base
     if seed is None:
         sc = cfg.search
@@ -231,6 +241,7 @@ def level_stage(base, nonlin, log):
 def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
     """Forward selection over rounds of candidate refits; returns the Selection and the
     baseline (re-solved when a refit's optimum showed it was a local minimum)."""
+    advance("diagnose", "selection")
     sel = Selection(state={"current": [], "z": base.res.z, "chi": base.chi,
                            "held": base.held, "problem": points.base})
     if level_bound:
@@ -240,6 +251,8 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
     while rnd < opts.max_findings:
         if adequate(sel.state["chi"], base.nu, sel.state["held"]) and rnd > 0:
             break
+        advance("diagnose", f"selection, round {rnd + 1} of at most {opts.max_findings}",
+                step=False)
         jobs = round_jobs(case, points, sel, others, seed, rnd, opts.top)
         state = sel.state
         results = refit_all([(case, points.target, state["current"], state["z"], e, sc,
@@ -356,6 +369,7 @@ def adopt(case, points, sel, others, results, accepted, log):
 def checks_stage(cfg, case, points, base, sel, level_bound, log):
     """The final model beyond its windows: inside the model class, phase, loss, the whole
     band; and the other tests' records of the final findings."""
+    advance("diagnose", "checks")
     state = sel.state
     phase = loss = None
     if level_bound:   # a linear fit that far off says nothing about priors, dampers, phase

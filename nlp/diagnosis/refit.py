@@ -16,6 +16,7 @@ from nlp.diagnosis.evidence import BIC_ACCEPT, dispersion
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, case_references, normalised,
                                    quasi_se, with_values)
 from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
+from nlp.output.progress import stage
 from nlp.solve.executors import Setup, make_executor
 
 # Iterations of a candidate refit. It starts at the current optimum with one family added:
@@ -114,11 +115,23 @@ def refit_all(jobs, search):
     refit is deterministic and they are returned in the order of the jobs.
     """
     workers = max(1, min(int(search.workers or 1), len(jobs)))
-    if workers == 1 and search.executor != "dask":
-        return [refit(*j) for j in jobs]
-    with make_executor(search.executor, workers=workers, scheduler=search.scheduler) as ex:
-        out = dict(ex.map(Setup(_jobs, jobs, value=jobs), _refit_one,
-                          [(i, i) for i in range(len(jobs))]))
+    out = {}
+    with stage("candidate refits", total=len(jobs), unit="refit") as bar:
+        if workers == 1 and search.executor != "dask":
+            for i, j in enumerate(jobs):
+                out[i] = refit(*j)
+                bar.update()
+        else:
+            with make_executor(search.executor, workers=workers,
+                               scheduler=search.scheduler) as ex:
+                stream = ex.stream(Setup(_jobs, jobs, value=jobs), _refit_one,
+                                   [(i, i) for i in range(len(jobs))])
+                try:
+                    for i, r in stream:  # in completion order; returned in job order
+                        out[i] = r
+                        bar.update()
+                finally:
+                    stream.close()
     return [out[i] for i in range(len(jobs))]
 
 
