@@ -19,7 +19,6 @@ interrupted batch resumed with ``--resume`` updates only the rest.
 
 import datetime as dt
 import glob
-import io
 import json
 import os
 import re
@@ -31,6 +30,7 @@ from nlp.case.assemble import assemble, build_problem
 from nlp.errors import InputError, SearchFailed
 from nlp.monitoring.changes import detect_changes
 from nlp.monitoring.report import plot_trend, write_batch_report
+from nlp.output.progress import stage
 from nlp.output.provenance import provenance
 from nlp.output.results import jsonable, summarize, write_atomic, write_json
 from nlp.solve.executors import Setup, interrupts_as_keyboard, make_executor
@@ -98,7 +98,7 @@ def update_record(cfg, path):
         # the record is already one task of the batch's executor: its starts run here
         with make_executor("serial") as ex:
             search = scatter_search(problem, SearchConfig.of(s, workers=1),
-                                    progress=io.StringIO(), executor=ex)
+                                    progress=False, executor=ex)
         res = summarize(case, problem, search)
     except InputError as exc:
         row["status"] = f"input error: {exc}"
@@ -183,11 +183,13 @@ def _update_records(cfg, todo, done, n_records, done_file, log):
         done[p] = row
         fh.write(json.dumps(row, default=jsonable) + "\n")
         fh.flush()
-        log(f"  [{len(done)}/{n_records}] {row['record']}: {row['status']}"
-            + (f", objective {row['objective']:.4g}" if "objective" in row else ""))
+        bar.update(last=row["record"])
+        bar.around(log)(f"  [{len(done)}/{n_records}] {row['record']}: {row['status']}"
+                        + (f", objective {row['objective']:.4g}" if "objective" in row else ""))
 
     with open(done_file, "a") as fh, interrupts_as_keyboard(), \
-            make_executor(s.executor, workers=s.workers, scheduler=s.scheduler) as ex:
+            make_executor(s.executor, workers=s.workers, scheduler=s.scheduler) as ex, \
+            stage("records", total=n_records, unit="record", initial=len(done)) as bar:
         stream = ex.stream(Setup(_config, cfg, value=cfg), _update_task, [(p, p) for p in todo],
                            batch_size=1)
         try:
