@@ -1,0 +1,117 @@
+"""Progress on stderr (nlp.output.progress): shown on a terminal, and off a terminal the
+commands print exactly what they printed before it existed."""
+
+import fcntl
+import io
+import os
+import pty
+import re
+import struct
+import subprocess
+import sys
+import termios
+from pathlib import Path
+
+import pytest
+
+from nlp.output import progress
+
+ROOT = Path(__file__).resolve().parents[2]
+MAIN = Path("/work/main")   # the code before progress bars, for the byte-for-byte comparison
+CASE = ROOT / "cases" / "four_story_shear_frame" / "case.yaml"
+RUN = ["run", str(CASE), "--starts", "4", "--seed", "0"]
+BAR = re.compile(r"[\r\x1b]|[\u2580-\u259f]|\d+/\d+ \[")   # \r, escapes, block glyphs, n/N [
+
+
+def _env(code_root):
+    env = dict(os.environ, PYTHONPATH=str(code_root))
+    env.pop("COLUMNS", None)
+    return env
+
+
+def _under_pty(args, out):
+    """(stdout, stderr) of ``python -m nlp args --out out`` with stderr a 30 x 120 terminal."""
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 120, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "nlp", *args, "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=slave, env=_env(ROOT), cwd=ROOT)
+    os.close(slave)
+    err = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:   # EIO: the child closed the terminal
+            break
+        if not chunk:
+            break
+        err += chunk
+    os.close(master)
+    stdout = proc.stdout.read().decode()
+    assert proc.wait(timeout=120) == 0
+    return stdout, err.decode(errors="replace")
+
+
+def _piped(code_root, args, out):
+    proc = subprocess.run([sys.executable, "-m", "nlp", *args, "--out", str(out)],
+                          capture_output=True, env=_env(code_root), cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stderr.decode()
+    return proc.stdout.decode(), proc.stderr.decode()
+
+
+def _comparable(text, out):
+    """The output with the --out folder named OUT and timings (they vary run to run) as T."""
+    return re.sub(r"\d+\.\d+ s\b", "T s", text.replace(str(out), "OUT"))
+
+
+def test_run_on_a_terminal_shows_stages_counts_and_each_start(tmp_path):
+    stdout, err = _under_pty(RUN, tmp_path / "out")
+    for name in ("build NLP", "local solves", "polishing"):
+        assert name in err
+    assert "1/1 [" in err and "4/4 [" in err           # n/N of build, starts, polishing
+    assert re.search(r"\[\d\d:\d\d<\d\d:\d\d", err)    # elapsed < remaining
+    starts = re.findall(r"start (\d): (\d+) iterations, f = ([0-9.e+-]+), [0-9.]+ s", err)
+    assert {s[0] for s in starts} >= {"0", "1", "2", "3"}
+    assert all(int(s[1]) > 0 and float(s[2]) < 1 for s in starts)
+    assert not BAR.search(stdout)                      # stdout is a pipe: no bar there
+    assert "search: 4/4 local solves" in stdout
+
+
+@pytest.mark.skipif(not (MAIN / "nlp").is_dir(), reason="needs the code before this change")
+def test_run_piped_prints_what_it_printed_before(tmp_path):
+    out_new, out_old = tmp_path / "new", tmp_path / "old"
+    stdout, stderr = _piped(ROOT, RUN, out_new)
+    before, before_err = _piped(MAIN, RUN, out_old)
+    assert not BAR.search(stderr) and "local solves" not in stderr
+    assert stderr == before_err
+    assert _comparable(stdout, out_new) == _comparable(before, out_old)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+    def fileno(self):   # no size: the bar falls back to 100 columns
+        raise io.UnsupportedOperation
+
+
+def test_reporters_draw_on_a_terminal_and_do_nothing_elsewhere(monkeypatch):
+    lines = []
+    log = lines.append
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    with progress.stage("quiet", 3) as bar:
+        bar.update(best_f="1")
+        bar.note("a note")
+        assert bar.around(log) is log
+    assert sys.stderr.getvalue() == ""
+    tty = _Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    with progress.steps("diagnose", 2) as bar:
+        progress.advance("diagnose", "screen")
+        progress.advance("diagnose", "baseline")
+        progress.advance("diagnose", "baseline, round 1", step=False)
+        progress.advance("diagnose", "verdict")     # a further look: the total grows
+        bar.around(log)("a log line")
+    progress.advance("diagnose", "after")           # no bar open: nothing happens
+    text = tty.getvalue()
+    assert "diagnose: baseline, round 1" in text and "3/3 [" in text
+    assert lines == ["a log line"]
