@@ -76,6 +76,15 @@ def test_run_on_a_terminal_shows_stages_counts_and_each_start(tmp_path):
     assert "search: 4/4 local solves" in stdout
 
 
+def test_batch_on_a_terminal_counts_the_records(tmp_path):
+    records = sorted(str(p) for p in (ROOT / "cases" / "monitoring" / "records").glob("*.npz"))
+    stdout, err = _under_pty(["batch", str(ROOT / "cases" / "monitoring" / "case.yaml"),
+                              *records[:3], "--starts", "2"], tmp_path / "out")
+    assert "records" in err and "3/3 [" in err and "local solves" not in err
+    assert "  [3/3] " in stdout                        # the log lines, as piped before
+    assert not re.search(r"[\r\x1b\u2580-\u259f]", stdout)
+
+
 @pytest.mark.skipif(not (MAIN / "nlp").is_dir(), reason="needs the code before this change")
 def test_run_piped_prints_what_it_printed_before(tmp_path):
     out_new, out_old = tmp_path / "new", tmp_path / "old"
