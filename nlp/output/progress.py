@@ -65,11 +65,13 @@ class _Bar(_Quiet):
     """A tqdm bar on stderr."""
 
     def __init__(self, name, total, unit, initial):
-        # a terminal that reports no size (a bare pseudo-terminal) would get an empty bar
+        # leave=None: a finished outer bar stays as a record of its stage, a nested one (a
+        # diagnosis' refits, a batch record's build) goes. A terminal that reports no size
+        # (a bare pseudo-terminal) would get an empty bar: 100 x 24 then.
         sized = _columns() > 0
         self._bar = tqdm(total=total, desc=name, unit=unit, initial=initial, file=sys.stderr,
                          dynamic_ncols=sized, ncols=None if sized else 100,
-                         nrows=None if sized else 24, leave=True, mininterval=0.2)
+                         nrows=None if sized else 24, leave=None, mininterval=0.2)
         self.name = name
 
     def update(self, n=1, **postfix):
