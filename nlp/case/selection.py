@@ -9,8 +9,9 @@ from nlp.errors import InputError
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import select_frequencies
 from nlp.frf.reference import BASE_DOF
+from nlp.model.damping import band_modes
 
-__all__ = ["detection_form", "select_points", "half_power_points", "selectable",
+__all__ = ["detection_form", "select_points", "half_power_points", "model_frequencies", "selectable",
            "detection_noise"]
 
 
@@ -27,9 +28,11 @@ def detection_form(f, H, channels, excitation):
     return out
 
 
-def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None):
+def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None, model_hz=None):
     """Indices into f of the points the objective uses, by frequencies.method; sigma: std
-    of ln|H| (n_ch, n_f) for the half-power method."""
+    of ln|H| (n_ch, n_f) for the half-power method; model_hz: the nominal model's natural
+    frequencies [Hz] (half-power: where fewer peaks are found, the unfound modes' points
+    are kept, :func:`nlp.frf.freqsel.unresolved_points`)."""
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -44,7 +47,7 @@ def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None):
     else:
         check_points_inside(cfg, f)
         try:
-            idx = half_power_points(cfg, f, H, channels, excitation, coherence, sigma)
+            idx = half_power_points(cfg, f, H, channels, excitation, coherence, sigma, model_hz)
         except InputError as exc:  # freqsel names its argument; say which case key it is
             raise _frequency_error(cfg, f, exc) from None
     return _nonempty(cfg, f, idx)
@@ -66,7 +69,7 @@ def _frequency_error(cfg, f, exc):
     return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)
 
 
-def half_power_points(cfg, f, H, channels, excitation, coherence, sigma=None):
+def half_power_points(cfg, f, H, channels, excitation, coherence, sigma=None, model_hz=None):
     """Half-power selection on the detection form; sigma: std of ln|H| (n_ch, n_f), so
     that a peak must stand out of the noise (carried over to the detection form)."""
     fc = cfg.frequencies
@@ -82,7 +85,21 @@ def half_power_points(cfg, f, H, channels, excitation, coherence, sigma=None):
                               coherence=coherence, min_coherence=fc.min_coherence,
                               bands=list(fc.bands) or None, n_peaks=fc.n_peaks,
                               min_points_per_peak=fc.min_points_per_peak, fmin=fc.fmin,
-                              fmax=fc.fmax, sigma=sigma)
+                              fmax=fc.fmax, sigma=sigma,
+                              model_hz=None if fc.n_peaks is not None else model_hz)
+
+
+def model_frequencies(model, f_lo, f_hi):
+    """Undamped natural frequencies [Hz] of the nominal model between f_lo and f_hi."""
+    n = model.n
+    count = min(n, 8)
+    while True:  # widen the eigen-solve until it passes the band's top
+        omega, _ = band_modes(model.M0, model.K0, count)
+        if omega[-1] > 2 * np.pi * f_hi or count >= n:
+            break
+        count = n if 2 * count >= n - 1 else 2 * count  # n - 1 and more: the dense solver
+    fr = omega / (2 * np.pi)
+    return fr[(fr >= f_lo) & (fr <= f_hi)]
 
 
 def selectable(cfg, f, channels, coherence):

@@ -16,7 +16,7 @@ from scipy import signal
 from nlp.errors import InputError
 from nlp.frf.scatter import local_scatter
 
-__all__ = ["band_mask", "find_peaks", "half_power_band", "select_frequencies", "plot_selection",
+__all__ = ["match_modes", "unresolved_points", "band_mask", "find_peaks", "half_power_band", "select_frequencies", "plot_selection",
            "peak_curve"]
 
 _SRC = "<arguments>"
@@ -325,9 +325,65 @@ def _band_points(f, bands):
     return np.flatnonzero(keep)
 
 
+MATCH_RATIO = 1.25  # a peak and a nominal mode this far apart in frequency are not paired
+
+
+def match_modes(peaks_hz, model_hz, ratio=MATCH_RATIO):
+    """Order-preserving pairs (i_peak, r_mode) of measured peaks and model modes [Hz].
+
+    Both lists are sorted; the pairing keeps their order (modes of a structure do not
+    swap between a model and its test) and minimises the summed |ln(f_peak / f_mode)|,
+    an unpaired peak or mode costing ln(ratio) / 2, so that pairs further apart than
+    ``ratio`` are never made (a dynamic programme, as for an edit distance).
+    """
+    p, q = np.log(np.asarray(peaks_hz, float)), np.log(np.asarray(model_hz, float))
+    skip = 0.5 * np.log(ratio)
+    m, n = p.size, q.size
+    D = np.zeros((m + 1, n + 1))
+    D[:, 0] = skip * np.arange(m + 1)
+    D[0, :] = skip * np.arange(n + 1)
+    for i in range(1, m + 1):
+        pair = D[i - 1, :-1] + np.abs(p[i - 1] - q)
+        pair[np.abs(p[i - 1] - q) > 2 * skip] = np.inf
+        for j in range(1, n + 1):
+            D[i, j] = min(pair[j - 1], D[i - 1, j] + skip, D[i, j - 1] + skip)
+    pairs, i, j = [], m, n
+    while i > 0 and j > 0:
+        if D[i, j] == D[i - 1, j - 1] + abs(p[i - 1] - q[j - 1]) and \
+                abs(p[i - 1] - q[j - 1]) <= 2 * skip:
+            pairs.append((i - 1, j - 1))
+            i, j = i - 1, j - 1
+        elif D[i, j] == D[i - 1, j] + skip:
+            i -= 1
+        else:
+            j -= 1
+    return pairs[::-1]
+
+
+def unresolved_points(f, peaks_hz, model_hz):
+    """Indices of f where modes of the model lie that no measured peak matches.
+
+    An unpaired mode (:func:`match_modes`) lies between the peaks paired with its
+    neighbours (or a band edge): every point there is kept, since the data cannot
+    say where in that interval its resonance is (modes closer than their half-power
+    bandwidths merge into one peak; a mode one bin wide is not found as a peak).
+    """
+    f = np.asarray(f, float)
+    pairs = match_modes(peaks_hz, model_hz)
+    at = {r: peaks_hz[i] for i, r in pairs}
+    keep = np.zeros(f.size, bool)
+    for r in range(len(model_hz)):
+        if r in at:
+            continue
+        lo = max([at[s] for s in at if s < r], default=-np.inf)
+        hi = min([at[s] for s in at if s > r], default=np.inf)
+        keep |= (f >= lo) & (f <= hi)
+    return np.flatnonzero(keep)
+
+
 def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=None,
                        n_peaks=None, min_points_per_peak=5, fmin=None, fmax=None,
-                       prominence_db=6.0, min_level=None, sigma=None):
+                       prominence_db=6.0, min_level=None, sigma=None, model_hz=None):
     """Indices of the frequency points used for updating.
 
     For each resonance peak of ``sum_ch |H|`` (see `find_peaks`), keep the
@@ -353,6 +409,10 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
     n_peaks, fmin, fmax, prominence_db, min_level, sigma :
         Passed to `find_peaks`.
     min_points_per_peak : int
+    model_hz : array_like, optional
+        Natural frequencies [Hz] of the nominal model in the band: where the peaks
+        found are fewer than its modes, the points where the unfound modes lie are
+        kept too (:func:`unresolved_points`), so that no mode's information is lost.
 
     Returns
     -------
@@ -377,6 +437,8 @@ def select_frequencies(f, H, k=1.0, coherence=None, min_coherence=None, bands=No
         inside = np.flatnonzero(band_mask(f, fmin, fmax))
         parts = [_peak_points(f, ip, half_power_band(f, peak_curve(f, H, ip), ip), k,
                               int(min_points_per_peak)) for ip in peaks]
+        if model_hz is not None and len(model_hz) > peaks.size:
+            parts.append(unresolved_points(f, f[np.sort(peaks)], np.sort(model_hz)))
         idx = np.intersect1d(np.concatenate(parts), inside)
     if min_coherence is not None:
         if coherence is None:
