@@ -11,6 +11,14 @@ the top of report.html.
 * ``iteration_limit``: the best start stopped at the solver's iteration (or
   time) limit, or a start that did reached a lower objective than the best
   converged one: the optimum may not be reached.
+* ``single_start``: only one of several finished starts reached the best
+  objective. The objective has several minima and the search found the lowest
+  once: a lower one may exist that no start reached.
+* ``misfit_above_noise``: the updated model misses the data by far more than
+  the data's own noise (from the FRF's scatter, coherence or rest portions,
+  :mod:`nlp.frf.noise`): either the search ended in a local minimum or the
+  model lacks physics the data show. Parameters and standard errors of such a
+  fit describe the best compromise, not the structure.
 * ``negative_correlation``: a replayed time history anti-correlates with its
   record, the signature of a sign or unit error (an inverted sensor, a force
   taken with the wrong sign, a displacement given as acceleration).
@@ -20,9 +28,16 @@ import numpy as np
 
 from nlp.solve.stopping import LIMIT_STATUSES
 
-__all__ = ["AT_BOUND", "bound_flag", "iteration_flag", "replay_flags"]
+__all__ = ["AT_BOUND", "MISFIT_RATIO", "bound_flag", "iteration_flag", "single_start_flag",
+           "misfit_flag", "replay_flags"]
 
 AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, that counts as "on"
+# RMS of ln|H_a / H_x| over the noise's RMS above which the fit is flagged. At the truth
+# the ratio is 1 within sqrt(1 / (2 N)) (chi-square sampling, N >= 100 points: 0.07);
+# the noise estimated from the FRF's own scatter is itself uncertain by tens of percent
+# (docs/method/noise.md). A ratio of 3 (a reduced chi-square of 9) is model error or a
+# wrong minimum by any of these margins.
+MISFIT_RATIO = 3.0
 
 
 def bound_flag(name, value, lower, upper, unit, se_key):
@@ -80,6 +95,42 @@ def iteration_flag(best, results, solver, agreed=0):
                        f"{r.iterations} iterations) below the best converged objective "
                        f"({r.f:.6g} < {best.f:.6g}): the optimum may lie elsewhere",
             "advice": advice}
+
+
+def single_start_flag(n_near, n_finished, rel_tol):
+    """Flag a search whose best objective only one start reached, or None.
+
+    n_near : converged starts within rel_tol of the best; n_finished : converged starts.
+    """
+    if n_finished < 2 or n_near != 1:
+        return None
+    return {"kind": "single_start", "subject": "search",
+            "message": f"only 1 of {n_finished} converged starts reached the best objective "
+                       f"(within {rel_tol:.0%}): the objective has several minima, and a lower "
+                       "one may exist that no start reached",
+            "advice": "run more starts (--starts); if the best still stands alone and its "
+                      "misfit is above the noise, fit fewer parameters (tie stories in groups) "
+                      "or add data that separate them (more sensors, another input point)"}
+
+
+def misfit_flag(rms_misfit, rms_noise, n_points):
+    """Flag a fit whose RMS ln|H_a / H_x| exceeds MISFIT_RATIO times the noise's, or None.
+
+    rms_misfit, rms_noise : RMS over the fitted points of ln|H_a / H_x| and of the
+    noise's standard deviation of ln|H|; n_points : the fitted points.
+    """
+    if not (np.isfinite(rms_misfit) and np.isfinite(rms_noise) and rms_noise > 0):
+        return None
+    ratio = rms_misfit / rms_noise
+    if ratio <= MISFIT_RATIO:
+        return None
+    return {"kind": "misfit_above_noise", "subject": "fit", "ratio": float(ratio),
+            "message": f"the updated model misses the data by {ratio:.1f} times their noise "
+                       f"(RMS ln|H| error {rms_misfit:.3g} against noise {rms_noise:.3g} over "
+                       f"{n_points} points): a local minimum or missing physics, and the "
+                       "standard errors do not hold",
+            "advice": "run more starts (--starts) and compare their objectives; if they agree, "
+                      "the model lacks physics the data show: run 'frf-nlp diagnose'"}
 
 
 def replay_flags(time_domain):

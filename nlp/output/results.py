@@ -9,7 +9,8 @@ import tempfile
 import numpy as np
 import scipy.sparse as sp
 
-from nlp.output.flags import bound_flag, iteration_flag
+from nlp.output.flags import bound_flag, iteration_flag, misfit_flag, single_start_flag
+from nlp.frf.noise import sigma_ln
 from nlp.frf.reference import channel_frfs, modal_parameters
 from nlp.solve.identify import jacobian_report, standard_errors
 from nlp.frf.metrics import fdac
@@ -136,6 +137,22 @@ def _parameter_rows(params, theta0, theta, se_theta, spread):
     return rows, flags
 
 
+def _fit_flags(case, search, Ha):
+    """Flags of the fit as a whole: a best objective one start reached, a misfit far
+    above the data's noise (:mod:`nlp.output.flags`)."""
+    converged = sum(1 for r in search.results if r.success)
+    flags = [single_start_flag(len(search.near_best), converged, search.rel_tol)]
+    tg = case.target
+    used = tg.weight > 0
+    with np.errstate(all="ignore"):
+        err = np.log(np.abs(Ha)) - np.log(np.abs(tg.H))
+    sig = sigma_ln(case, case.selected)
+    if sig.shape == err.shape and used.any():
+        flags.append(misfit_flag(float(np.sqrt(np.mean(err[used] ** 2))),
+                                 float(np.sqrt(np.mean(sig[used] ** 2))), int(used.sum())))
+    return [f for f in flags if f]
+
+
 def _search_section(cfg, search):
     """The ``search`` entry of result.json: the starts and how the search ended."""
     return {"seed": cfg.search.seed, "trial_points": search.n_trial,
@@ -177,6 +194,7 @@ def summarize(case, problem, search):
                            agreed=len(search.agreed))
     if limit:
         flags.append(limit)
+    flags += _fit_flags(case, search, Ha)
     return {
         "case": cfg.name, "case_file": cfg.path,
         "flags": flags,
