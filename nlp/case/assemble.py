@@ -15,9 +15,9 @@ from nlp.case.checks import (check_data_points, check_free_parameters, check_frf
 from nlp.case.model import case_model, dof_index, ground_vector, groups_cover
 from nlp.case.parameters import case_damping, case_parameters
 from nlp.case.records import read_data
-from nlp.case.selection import select_points
+from nlp.case.selection import model_frequencies, select_points
 from nlp.errors import InputError
-from nlp.frf.backends import choose as choose_backend
+from nlp.frf.backends import DENSE_MAX, choose as choose_backend
 from nlp.frf.backends import reduced
 from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
@@ -28,7 +28,7 @@ from nlp.model.nominal import StructuralModel
 from nlp.model.parameters import ParameterSet
 from nlp.output.progress import stage
 from nlp.solve.identify import SCALE_EXPLANATION, scale_null_space
-from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
+from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem, prefit_residual
 
 __all__ = ["Case", "assemble", "build_problem", "reduced_error"]
 
@@ -86,7 +86,14 @@ def assemble(cfg, channels=None, data_file=None):
     noise = noise_model(SimpleNamespace(config=cfg, f=f, H=H, coherence=coherence,
                                         records=records, channels=tuple(channels),
                                         n_averages=n_avg, kernel=kernel))
-    idx = select_points(cfg, f, H, channels, ex.type, coherence, noise.detect)
+    fc = cfg.frequencies
+    model_hz = model_frequencies(model, max(f[0], fc.fmin or 0.0), min(f[-1], fc.fmax or np.inf)) \
+        if fc.method == "half_power" and not fc.bands and fc.n_peaks is None else None
+    if model_hz is not None and model_hz.size <= DENSE_MAX:
+        # few modes: kept as they were, since the diagnosis's decisions were measured on
+        # that selection (a mode not found among few is one the data barely show)
+        model_hz = None
+    idx = select_points(cfg, f, H, channels, ex.type, coherence, noise.detect, model_hz)
     # damping after the selection: modal-basis damping takes the band's modes
     damping = case_damping(cfg, model, float(f[idx].max()))
     params = case_parameters(cfg, model, damping)
@@ -148,11 +155,18 @@ def build_problem(case, centre=None):
         with stage("build NLP") as bar:
             backend = choose_backend(cfg.model.frf_backend, case.model.n)
             basis, info = _reduced_basis(case, centre) if backend == "reduced" else (None, None)
-            problem = UpdatingProblem(case.model, case.damping, case.params, case.target,
-                                      residual=cfg.objective.residual, solver=solver,
-                                      total_mass=cfg.parameters.total_mass, frf_backend=backend,
-                                      basis=basis)
+            def on(residual):
+                return UpdatingProblem(case.model, case.damping, case.params, case.target,
+                                       residual=residual, solver=solver,
+                                       total_mass=cfg.parameters.total_mass, frf_backend=backend,
+                                       basis=basis)
+
+            problem = on(cfg.objective.residual)
             problem.reduced_info = info
+            pre = prefit_residual(cfg.objective.prefit, cfg.objective.residual, problem.backend)
+            if pre is not None:
+                problem.prefit = on(pre)
+                problem.prefit.polish_unconverged = False  # only a start for the case's residual
             bar.update()
     except RuntimeError as exc:
         if "option" not in str(exc).lower():  # not the user's options: a real failure

@@ -15,7 +15,7 @@ from nlp.case.load_data import data_section
 from nlp.case.overrides import apply_overrides
 from nlp.case.reader import Reader, YamlLoader, dof_spec, existing, location, scheduler_address
 from nlp.case.schema import (DAMPING_MODELS, EXCITATIONS, EXECUTORS, FREQUENCY_METHODS,
-                             FRF_BACKENDS, MODEL_TYPES, RESIDUALS, SOLVERS, CaseConfig,
+                             FRF_BACKENDS, MODEL_TYPES, PREFITS, RESIDUALS, SOLVERS, CaseConfig,
                              DampingConfig, ExcitationConfig, FrequencyConfig, ModelConfig,
                              Multiplier, ObjectiveConfig, ParameterConfig, SearchSection,
                              SolverSection)
@@ -57,6 +57,9 @@ def load_case(path, overrides=None):
     )
     if not cfg.data.has_phase and cfg.objective.residual == "complex":
         raise rd.err("objective.residual", f"magnitude or log_magnitude (data.format "
+                     f"{cfg.data.format} has no phase)", "complex")
+    if not cfg.data.has_phase and cfg.objective.prefit == "complex":
+        raise rd.err("objective.prefit", f"auto, none or magnitude (data.format "
                      f"{cfg.data.format} has no phase)", "complex")
     cfg = _updates_and_verification(rd, raw, cfg)
     return apply_overrides(cfg, overrides or {}, rd)
@@ -329,9 +332,11 @@ def _frequencies(rd, d):
 
 
 def _objective(rd, d):
-    rd.check_keys(d, "objective", {"residual"})
+    rd.check_keys(d, "objective", {"residual", "prefit"})
     return ObjectiveConfig(residual=rd.choice(d, "residual", "objective.residual", RESIDUALS,
-                                              ObjectiveConfig.residual))
+                                              ObjectiveConfig.residual),
+                           prefit=rd.choice(d, "prefit", "objective.prefit", PREFITS,
+                                            ObjectiveConfig.prefit))
 
 
 def _solver(rd, d):

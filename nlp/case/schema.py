@@ -14,13 +14,13 @@ from nlp.frf.reference import EXCITATIONS
 from nlp.io.quality import DROPOUT_MIN_SAMPLES, SPIKE_THRESHOLD
 from nlp.io.readers import FRF_FORMATS, MAGNITUDE_ONLY
 from nlp.solve.executors import EXECUTORS
-from nlp.solve.problem import SOLVERS
+from nlp.solve.problem import PREFITS, SOLVERS
 from nlp.solve.residuals import RESIDUALS
 from nlp.solve.search import SearchSettings
 
 __all__ = ["CaseConfig", "ModelConfig", "ParameterConfig", "DampingConfig", "ExcitationConfig",
            "ChannelConfig", "DataConfig", "ScreenConfig", "Multiplier", "FrequencyConfig",
-           "ObjectiveConfig", "SolverSection", "SearchSection", "OUTPUTS", "RESIDUALS", "SOLVERS",
+           "ObjectiveConfig", "SolverSection", "SearchSection", "OUTPUTS", "RESIDUALS", "PREFITS", "SOLVERS",
            "FRF_BACKENDS", "MODEL_TYPES", "DAMPING_MODELS", "EXCITATIONS", "DATA_TYPES",
            "DATA_FORMATS", "DB_FORMATS", "MAGNITUDE_ONLY", "ESTIMATORS", "INPUT_QUANTITIES",
            "CHANNEL_QUANTITIES", "FREQUENCY_METHODS", "EXECUTORS"]
@@ -164,6 +164,7 @@ class FrequencyConfig:
 @dataclass(frozen=True)
 class ObjectiveConfig:
     residual: str = "log_magnitude"        # log_magnitude | magnitude | complex (needs phase)
+    prefit: str = "auto"                   # auto | none | magnitude | complex: a first solve of every start on this residual (nlp.solve.problem); auto: magnitude for log_magnitude fits on the sparse or reduced backend
 
 
 @dataclass(frozen=True)

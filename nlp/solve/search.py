@@ -209,11 +209,12 @@ def converged(problem, res):
     return bool(res.success)
 
 
-def solve_start(problem, z0, screen=False):
+def solve_start(problem, z0, screen=False, prefit=True):
     """One local solve that never raises: a failure is a result with f = inf.
 
     screen: use the problem's screening tolerance when it has one
-    (:meth:`nlp.solve.problem.UpdatingProblem.solve`).
+    (:meth:`nlp.solve.problem.UpdatingProblem.solve`); prefit: False for a re-solve
+    from an optimum of the problem's own residual.
 
     ``success`` of the returned result means :func:`converged`. A solve that
     stopped without converging keeps the objective evaluated at the point it
@@ -221,7 +222,7 @@ def solve_start(problem, z0, screen=False):
     """
     t0 = time.perf_counter()
     try:
-        res = problem.solve(z0, screen=True) if screen else problem.solve(z0)
+        res = problem.solve(z0, screen=screen, prefit=prefit)
     except Exception as exc:  # a failed start must not end the search
         msg = " ".join(str(exc).split())[:200]
         return LocalResult(z=np.asarray(z0, float), f=np.inf, success=False,
@@ -273,7 +274,7 @@ def _polish_one(problem, results, i):
         # first round of refits after 7.5 min; skipping them, all of it took 7 min 41 s)
         return
     r = results[i]
-    p = solve_start(problem, r.z)
+    p = solve_start(problem, r.z, prefit=False)
     if p.success:
         results[i] = replace(p, z0=r.z0, iterations=r.iterations + p.iterations,
                              seconds=r.seconds + p.seconds)
@@ -281,7 +282,8 @@ def _polish_one(problem, results, i):
 
 def _start_line(what, i, res):
     """One start's line on a terminal: iterations, objective, seconds, solver status."""
-    return (f"  {what} {i}: {res.iterations} iterations, f = {res.f:.6g}, "
+    pre = f" (after {res.prefit_iterations} of the prefit)" if res.prefit_iterations else ""
+    return (f"  {what} {i}: {res.iterations} iterations{pre}, f = {res.f:.6g}, "
             f"{res.seconds:.2f} s, {res.status}")
 
 

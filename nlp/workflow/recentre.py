@@ -57,7 +57,7 @@ def recentre(case, problem, best, log=print, passes=4, tol=0.1):
     converged = False
     for k in range(passes):
         new = build_problem(case, centre=z)
-        res = new.solve(z)
+        res = new.solve(z, prefit=False)  # from the previous basis's optimum
         r, J = new.residuals(res.z)
         cov, _, _ = standard_errors(J, r, new.n_used, new.constraint_jacobian())
         se = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
