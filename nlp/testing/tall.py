@@ -86,7 +86,7 @@ def case_dict(frame, data_file="frf.npz", frequencies=None):
         "data": {"file": data_file, "window": "none",
                  "channels": [{"name": f"floor{d + 1}", "floor": d + 1, "output": "receptance",
                                "column": i} for i, d in enumerate(frame.dofs)]},
-        "frequencies": frequencies or {"method": "all"},
+        "frequencies": {"method": "all"} if frequencies is None else frequencies,
         "objective": {"residual": "log_magnitude"},
         "solver": {"name": "ipopt", "options": {"max_iter": 500}},
         "search": {"starts": 4, "seed": 0, "workers": 1},
