@@ -5,15 +5,13 @@ search and round of refits from the checkpoint instead of computing them again."
 import json
 import os
 
-import numpy as np
 import pytest
 
 import nlp.diagnosis.driver as D
 from nlp import api
 from nlp.diagnosis.checkpoint import checkpoint_dir
 from nlp.errors import InputError
-from support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
-from support.frames import shear_K
+from support.diagnosis import coupled_case
 
 DROP = {"provenance", "elapsed", "seconds", "time", "timestamps"}
 
@@ -28,22 +26,8 @@ def _clean(x):
 
 
 def _case(tmp_path):
-    """A 3-storey frame with a 900 N/m spring between floors 1 and 3 (FRF files, 1 % noise):
-    one round of candidates finds it."""
-    rng = np.random.default_rng(3)
-    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
-    M, C, _ = frame_matrices(m, k)
-    e = np.array([1.0, 0.0, -1.0])
-    K = shear_K(k) + 900.0 * np.outer(e, e)
-    H = np.empty((3, F.size), complex)
-    for i, f in enumerate(F):
-        w = 2 * np.pi * f
-        H[:, i] = -w**2 * np.linalg.solve(K - w**2 * M + 1j * w * C, np.eye(3)[0])
-    H *= 1 + 0.01 * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
-    write_frf(tmp_path, "frf.npz", H)
-    return write_case_yaml(tmp_path, m, k, [("frf.npz", 1)],
-                           {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
-                           {"model": "rayleigh", "zeta": 0.015})
+    """One round of candidates finds the 900 N/m spring between floors 1 and 3."""
+    return coupled_case(tmp_path)
 
 
 def _quiet(*_):
