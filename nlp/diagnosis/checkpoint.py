@@ -13,6 +13,12 @@ same inputs) is read instead of computed, so the resumed diagnosis.json is the o
 uninterrupted diagnosis writes. A step whose inputs differ from the record (a changed
 case is refused by the header before that) is computed again, and so are those after it.
 
+Ctrl-C (SIGINT) or SIGTERM during a recorded diagnosis is held until the step running is
+recorded, and the diagnosis stops there (exit status 130): an in-process CasADi solve
+turns a KeyboardInterrupt into a solve cut short and goes on, which would change the
+diagnosis. A second Ctrl-C stops at once, losing the step running. A signal after the
+last step lets the diagnosis finish and write its result.
+
 The records are Python pickles of numbers, arrays and the candidates' dataclasses: read
 only checkpoints this program wrote.
 """
@@ -23,6 +29,9 @@ import json
 import os
 import pickle
 import shutil
+import signal
+import sys
+import threading
 
 import numpy as np
 
@@ -63,11 +72,46 @@ def _case_hash(cfg, settings):
     return fingerprint(repr(cfg), sorted(files.items()), settings, __version__)
 
 
+class _Interrupts:
+    """SIGINT and SIGTERM during a recorded diagnosis: the first is held (check raises it
+    between steps), a second stops the process at once."""
+
+    def __init__(self):
+        self.pending, self.old = None, {}
+
+    def install(self):
+        if threading.current_thread() is not threading.main_thread():
+            return   # signals are handled in the main thread only
+        for s in (signal.SIGINT, signal.SIGTERM):
+            self.old[s] = signal.getsignal(s)
+            signal.signal(s, self.handler)
+
+    def restore(self):
+        for s, h in self.old.items():
+            signal.signal(s, h)
+        self.old = {}
+
+    def handler(self, signum, frame):
+        if self.pending is None:
+            self.pending = signum
+            sys.stderr.write("frf-nlp: interrupted: the diagnosis stops once the step running "
+                             "is recorded for --resume (Ctrl-C again stops at once)\n")
+            return
+        self.restore()
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+
+    def check(self):
+        if self.pending is not None:
+            raise KeyboardInterrupt(signal.Signals(self.pending).name)
+
+
 class _Checkpoint:
     """The steps of one diagnosis on disk; ``resume`` reads the finished ones first."""
 
     def __init__(self, folder, header, resume):
         self.folder, self.n, self.reused, self.valid = folder, 0, 0, resume
+        self.interrupts = _Interrupts()
         head = os.path.join(folder, "header.json")
         if resume:
             if not os.path.isfile(head):
@@ -85,6 +129,7 @@ class _Checkpoint:
             write_atomic(head, json.dumps(header) + "\n")
 
     def step(self, name, key, compute, dump, load):
+        self.interrupts.check()
         self.n += 1
         path = os.path.join(self.folder, f"{self.n:03d}-{name}.pkl")
         if self.valid and os.path.isfile(path):
@@ -100,6 +145,7 @@ class _Checkpoint:
                     os.unlink(os.path.join(self.folder, f))
         value = compute()
         write_atomic(path, pickle.dumps({"key": key, "value": dump(value)}), mode="wb")
+        self.interrupts.check()
         return value
 
 
@@ -111,6 +157,7 @@ def recording(out, cfg, settings, resume=False, log=print):
     folder = checkpoint_dir(out)
     ck = _Checkpoint(folder, {"format": FORMAT, "hash": _case_hash(cfg, settings)}, resume)
     _OPEN.append(ck)
+    ck.interrupts.install()
     try:
         yield ck
     except KeyboardInterrupt:
@@ -121,12 +168,15 @@ def recording(out, cfg, settings, resume=False, log=print):
     else:
         if resume:
             log(f"resumed: {ck.reused} finished steps taken from {folder}")
+        if ck.interrupts.pending is not None:
+            log("the interrupt came after the last recorded step: the diagnosis finished")
         shutil.rmtree(folder, ignore_errors=True)
         try:
             os.rmdir(os.path.dirname(folder))   # DIR.partial, when nothing else is in it
         except OSError:
             pass
     finally:
+        ck.interrupts.restore()
         _OPEN.remove(ck)
 
 

@@ -10,13 +10,14 @@ updated parameters may have absorbed, worded as hypotheses.
 from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
 
 __all__ = ["finding_title", "finding_values", "finding_line", "paragraph", "hypotheses",
-           "other_statements", "unconfirmed_lines", "REFERENCES", "REMAINING", "EXTRA_MODES"]
+           "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES"]
 
 REFERENCES = "references.json"   # beside diagnosis.json: the families' reference magnitudes
 # statements of verdict.py that the paragraph says in its own words (not repeated)
 REMAINING = ("With this added, residuals are still above the noise: more is missing than the "
              "candidate families describe.")
 EXTRA_MODES = "Resonances the model does not have (extra modes): "
+REFIT_STATEMENT = "The data show "   # how a refitted finding's statement begins
 
 # the parameter that says how big a finding is (else its first one)
 SIZE = {"base_flexibility": ("log10_kb",), "secondary_oscillator": ("mu", "f_s"),
@@ -36,6 +37,14 @@ def finding_values(f, refs=None):
         vals.append("not determined by the data: " + ", ".join(
             f"{quantity(f.get('physics'), n, 0.0).label} ({n})" for n in f["not_determined"]))
     return vals
+
+
+def finding_note(f):
+    """The finding's own statement when it says more than its values (how an effect inside
+    the model class, a phase delay or a level dependence was found); None for a refit's
+    statement, which only repeats the values as fitted (verdict.statement: REFIT_STATEMENT)."""
+    st = f.get("statement")
+    return None if not st or st.startswith(REFIT_STATEMENT) else st
 
 
 def finding_line(f, refs=None):

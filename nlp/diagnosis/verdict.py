@@ -12,7 +12,8 @@ from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.look import Conclusion
 from nlp.diagnosis.plain import finding_line, finding_title, finding_values, hypotheses, \
-    other_statements, paragraph, unconfirmed_lines, EXTRA_MODES, REFERENCES, REMAINING
+    other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, REFERENCES, \
+    REFIT_STATEMENT, REMAINING
 from nlp.diagnosis.plots import plot_diagnosis
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.provenance import provenance
@@ -54,7 +55,7 @@ def statement(r):
                      for k, v in r["parameters"].items())
     if r.get("not_determined"):
         pars += "; not determined by the data: " + ", ".join(r["not_determined"])
-    return f"The data show {WORDS[r['physics']]} {where} ({pars})."
+    return f"{REFIT_STATEMENT}{WORDS[r['physics']]} {where} ({pars})."
 
 
 def public(r):
@@ -289,6 +290,8 @@ def log_conclusion(log, result, refs=None):
         log(f"  finding: {finding_title(f)}")
         for v in finding_values(f, refs):
             log(f"    {v}")
+        if finding_note(f):
+            log(f"    {finding_note(f)}")
     log(textwrap.fill("In plain words: " + paragraph(result, refs), 100, initial_indent="  ",
                       subsequent_indent="  "))
     for st in unconfirmed_lines(result, refs):

@@ -17,8 +17,8 @@ import json
 import os
 
 from nlp import __version__
-from nlp.diagnosis.plain import (REFERENCES, finding_title, finding_values, hypotheses,
-                                 other_statements, paragraph, unconfirmed_lines)
+from nlp.diagnosis.plain import (REFERENCES, finding_note, finding_title, finding_values,
+                                 hypotheses, other_statements, paragraph, unconfirmed_lines)
 from nlp.errors import InputError
 from nlp.output.results import write_atomic
 
@@ -329,6 +329,7 @@ def _diagnosis_report(out):
            "held-out chi-square"]
     if d.get("findings"):
         parts += ["<h2>Findings</h2>", _table(hdr, _finding_rows(d["findings"], refs), "text")]
+        parts += [f"<p>{html.escape(n)}</p>" for n in map(finding_note, d["findings"]) if n]
     parts += ["<h2>In plain words</h2>", f"<p>{html.escape(paragraph(d, refs))}</p>"]
     parts += _items("Also seen", other_statements(d))
     parts += _items("Not confirmed by the other tests", unconfirmed_lines(d, refs))

@@ -4,6 +4,10 @@ search and round of refits from the checkpoint instead of computing them again."
 
 import json
 import os
+import signal
+import subprocess
+import sys
+import time
 
 import pytest
 
@@ -12,6 +16,7 @@ from nlp import api
 from nlp.diagnosis.checkpoint import checkpoint_dir
 from nlp.errors import InputError
 from support.diagnosis import coupled_case
+from support.paths import ROOT
 
 DROP = {"provenance", "elapsed", "seconds", "time", "timestamps"}
 
@@ -34,12 +39,20 @@ def _quiet(*_):
     pass
 
 
-@pytest.mark.slow  # three diagnoses of a small case: about a minute on 2 cores
-def test_resumed_diagnosis_is_the_uninterrupted_one(tmp_path, monkeypatch):
-    cfg = _case(tmp_path)
-    ref = api.diagnose(cfg, tmp_path / "ref", log=_quiet).data
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """The case and its uninterrupted diagnosis.json."""
+    folder = tmp_path_factory.mktemp("resume")
+    cfg = _case(folder)
+    ref = api.diagnose(cfg, folder / "ref", log=_quiet).data
     assert ref["findings"], ref["summary"]   # the round found something to keep
-    assert not os.path.exists(checkpoint_dir(tmp_path / "ref"))   # removed when done
+    assert not os.path.exists(checkpoint_dir(folder / "ref"))   # removed when done
+    return cfg, ref
+
+
+@pytest.mark.slow  # three diagnoses of a small case: about a minute on 2 cores
+def test_resumed_diagnosis_is_the_uninterrupted_one(tmp_path, monkeypatch, uninterrupted):
+    cfg, ref = uninterrupted
 
     calls = {"search": 0, "refits": 0}
     search, refit_all, inside = D.scatter_best, D.refit_all, D.inside_model_class
@@ -67,9 +80,42 @@ def test_resumed_diagnosis_is_the_uninterrupted_one(tmp_path, monkeypatch):
     assert calls == {"search": 1, "refits": 1}                # both taken from the checkpoint
     assert any(line.startswith("resumed: ") for line in lines)
     assert _clean(res) == _clean(ref)
-    on_disk = json.loads((out / "diagnosis.json").read_text())
-    assert _clean(on_disk) == _clean(json.loads((tmp_path / "ref" / "diagnosis.json").read_text()))
+    assert _clean(json.loads((out / "diagnosis.json").read_text())) == _clean(ref)
     assert not os.path.exists(checkpoint_dir(out))
+
+
+def _command(cfg, out, *extra):
+    """``frf-nlp diagnose`` in a subprocess that takes SIGINT as a terminal's Ctrl-C does
+    (a shell's background job would ignore it)."""
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    return subprocess.Popen([sys.executable, "-m", "nlp", "diagnose", cfg.path, "--out", str(out),
+                             *extra], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+@pytest.mark.slow  # two diagnoses of a small case in subprocesses: about a minute
+def test_ctrl_c_then_resume_on_the_command_line(tmp_path, uninterrupted):
+    """SIGINT once the baseline search is in the checkpoint: exit status 130, no output
+    folder; ``--resume`` then writes the uninterrupted diagnosis.json."""
+    cfg, ref = uninterrupted
+    out = tmp_path / "out"
+    proc = _command(cfg, out)
+    folder = checkpoint_dir(out)
+    deadline = time.monotonic() + 600
+    while not (os.path.isdir(folder) and any(f.endswith("baseline.pkl") for f in os.listdir(folder))):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert "continue with --resume" in stdout and "Traceback" not in stderr
+    assert not out.exists()
+    resumed = _command(cfg, out, "--resume")
+    stdout, stderr = resumed.communicate(timeout=600)
+    assert resumed.returncode == 0, stderr
+    assert "resumed: " in stdout
+    assert _clean(json.loads((out / "diagnosis.json").read_text())) == _clean(ref)
 
 
 def test_resume_without_a_checkpoint_is_refused(tmp_path):
