@@ -35,7 +35,8 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
             ax.set_title(f"{title}: {key.replace('_', '-')} points", fontsize=9)
             if row == 1:
                 ax.set_xlabel("band centre [Hz]", fontsize=8)
-    fig.colorbar(im, ax=axes, label="log10 mean (residual / noise)^2")
+    # extend: cells beyond the scale (a baseline 100x the noise and more) show as its ends
+    fig.colorbar(im, ax=axes, label="log10 mean (residual / noise)^2", extend="both")
     save_figure(fig, os.path.join(out, "residual_map.png"))
     lo = case.f[case.selected].min() * 0.7
     hi = min(case.f[-1], case.f[case.selected].max() * 1.3)
