@@ -38,7 +38,7 @@ def _run(args):
 
 def _diagnose(args):
     out = _out(args, "diagnosis")
-    api.diagnose(_case(args), out)
+    api.diagnose(_case(args), out, resume=args.resume)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png, report.html")
     return 0
 
@@ -60,7 +60,8 @@ _EPILOG = """exit status:
   2    a mistake in the command line, case file or data file (one line names the file,
        the key and what is expected; nothing is written)
   3    no local solve converged (no result written)
-  130  interrupted (Ctrl-C or SIGTERM); a run keeps the finished starts for --resume
+  130  interrupted (Ctrl-C or SIGTERM); a run keeps the finished starts, a diagnosis its
+       finished searches and rounds, for --resume
 
 Case-file reference: docs/case_reference.md. Python API: docs/api (see README)."""
 
@@ -102,6 +103,9 @@ def _parser():
     dg.add_argument("--seed", type=int, help="seed of the start points (default: search.seed, "
                     "else 0)")
     _executor_arguments(dg, "baseline starts and candidate refits")
+    dg.add_argument("--resume", action="store_true", help="continue an interrupted diagnosis "
+                    "into the same --out: its finished searches and rounds are taken from "
+                    "the checkpoint (DIR.partial/diagnosis/)")
     bt = sub.add_parser("batch", help="update the same model from every record (monitoring)")
     bt.add_argument("case", help="case YAML file (data.file is replaced by each record)")
     bt.add_argument("records", nargs="+", help="record files, folders or glob patterns")

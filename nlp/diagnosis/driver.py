@@ -31,6 +31,8 @@ from nlp.case.assemble import assemble
 from nlp.case.checks import check_start_residuals
 from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same,
                                       scan_secondary, score, to_refit)
+from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
+                                      repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
@@ -67,16 +69,19 @@ BASELINE_STARTS = 20   # least scatter-search starts of the baseline: a poor opt
                        # would make any added parameter look useful
 
 
-def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1):
+def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, resume=False, ckpt_out=None):
     """Diagnose a case; writes out/diagnosis.json and figures; returns the dict.
 
     Forward selection: each round adds the best accepted candidate to the model and
     looks again, until the model explains the data, nothing more is accepted,
     candidates tie (ambiguous), or max_findings are found (top: candidates refitted per
     round, doubled for close scores). widen: the first look's windows, in half-power
-    bandwidths; only a first look of 1 may widen (nlp.diagnosis.widen).
+    bandwidths; only a first look of 1 may widen (nlp.diagnosis.widen). Each search and
+    round is kept in ckpt_out's checkpoint (default: out's; nlp.diagnosis.checkpoint) until
+    the diagnosis completes; resume takes the finished ones from it.
     """
-    with steps("diagnose", len(STAGES)) as bar:
+    with steps("diagnose", len(STAGES)) as bar, \
+            recording(ckpt_out or out, cfg, (top, max_findings, widen), resume, bar.around(log)):
         log = bar.around(log)
         case = assemble(cfg)
         screening = None
@@ -97,7 +102,8 @@ def first_look(cfg, case, opts, widen, screening, log):
     points = points_stage(cfg, case, widen, (), log)
     base = baseline_stage(cfg, case, points, None, log)
     advance("diagnose", "levels")
-    nonlin = nonlinearity(cfg, log)
+    nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
+                         lambda lg: nonlinearity(cfg, lg), log)
     level_bound = level_stage(base, nonlin, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, None, opts, log)
     if widen == 1 and not level_bound:
@@ -197,15 +203,16 @@ def baseline_stage(cfg, case, points, seed, log):
     pr = points.base
     if seed is None:
         sc = cfg.search
-        res, converged = scatter_best(
+        res, converged = step("baseline", fingerprint(points.fit, points.widen), lambda: scatter_best(
             pr, SearchConfig(starts=max(sc.starts, BASELINE_STARTS), seed=sc.seed,
                              workers=sc.workers, executor=sc.executor, scheduler=sc.scheduler),
-            setup=Setup(diagnosis_problem, case, points.target, value=pr))
+            setup=Setup(diagnosis_problem, case, points.target, value=pr)))
     else:
         # the first look searched this model already; over 3x the points a search costs
         # about what the whole first look did, and a local minimum left here is caught by
         # the re-solve from the refits' optima (refit.repolish)
-        res = best_fit(pr, [seed.z_base, seed.z_final[:pr.params.n_z]])
+        res = step("baseline", fingerprint(points.fit, seed.z_base, seed.z_final),
+                   lambda: best_fit(pr, [seed.z_base, seed.z_final[:pr.params.n_z]]))
         converged = bool(res.success)
     if not converged:
         log("baseline: no start met the solver's convergence test (iteration limit); the "
@@ -255,11 +262,15 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
                 step=False)
         jobs = round_jobs(case, points, sel, others, seed, rnd, opts.top)
         state = sel.state
-        results = refit_all([(case, points.target, state["current"], state["z"], e, sc,
-                              base.n_fit, points.held, points.sig_held) for sc, e in jobs],
-                            cfg.search)
-        better = repolish(state, results, case, points.held, points.sig_held) \
-            if repolished < MAX_REPOLISH else None
+        results = refits_step(
+            fingerprint(rnd, state["z"], [(sc, repr(e)) for sc, e in jobs]),
+            lambda: refit_all([(case, points.target, state["current"], state["z"], e, sc,
+                                base.n_fit, points.held, points.sig_held) for sc, e in jobs],
+                              cfg.search), case, points.target, state["current"])
+        better = repolish_step(fingerprint(state["z"], [r["chi2"] for r in results]),
+                               lambda: repolish(state, results, case, points.held,
+                                                points.sig_held),
+                               state["problem"]) if repolished < MAX_REPOLISH else None
         if better is not None:
             # the current optimum was a local minimum: judge the candidates against the
             # better one, so a refit that merely finds the current model's own minimum

@@ -101,13 +101,17 @@ def scatter_best(problem, config, setup=None):
     converged is False (diagnosis.json says so)."""
     kept = _Kept()
     try:
-        return scatter_search(problem, config, progress=None, checkpoint=kept,
-                              setup=setup).best, True
+        search = scatter_search(problem, config, progress=None, checkpoint=kept, setup=setup)
     except SearchFailed:
         finite = [r for r in kept.results.values() if np.isfinite(r.f)]
         if not finite:
             raise
         return min(finite, key=lambda r: r.f), False
+    if search.interrupted:
+        # a diagnosis goes on from this optimum: a search cut short by Ctrl-C would change
+        # what follows, so the interruption stops the diagnosis (diagnose --resume)
+        raise KeyboardInterrupt("interrupted during a scatter search")
+    return search.best, True
 
 
 def best_fit(problem, z0_list):

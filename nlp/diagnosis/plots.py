@@ -4,7 +4,8 @@ import os
 
 import numpy as np
 
-from nlp.output.plots import new_figure, save_figure
+from nlp.diagnosis.units import FAMILY_WORDS
+from nlp.output.plots import frf_quantity, new_figure, save_figure
 
 __all__ = ["plot_diagnosis"]
 
@@ -34,7 +35,8 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
             ax.set_title(f"{title}: {key.replace('_', '-')} points", fontsize=9)
             if row == 1:
                 ax.set_xlabel("band centre [Hz]", fontsize=8)
-    fig.colorbar(im, ax=axes, label="log10 mean (residual / noise)^2")
+    # extend: cells beyond the scale (a baseline 100x the noise and more) show as its ends
+    fig.colorbar(im, ax=axes, label="log10 mean (residual / noise)^2", extend="both")
     save_figure(fig, os.path.join(out, "residual_map.png"))
     lo = case.f[case.selected].min() * 0.7
     hi = min(case.f[-1], case.f[case.selected].max() * 1.3)
@@ -49,10 +51,12 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
                     label="measured")
         ax.semilogy(case.f[keep], np.abs(H0[c]), "--", color="tab:blue", label="baseline (updated)")
         if family:
-            ax.semilogy(case.f[keep], np.abs(H1[c]), color="tab:red", label=f"with {family}")
+            added = ", ".join(FAMILY_WORDS.get(p, p) for p in family.split(" + "))
+            ax.semilogy(case.f[keep], np.abs(H1[c]), color="tab:red", label=f"with {added}")
+        words, unit = frf_quantity(ch.output, case.target.excitation)
         ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel(f"|{ch.output}|")
-        ax.set_title(f"{ch.name}")
+        ax.set_ylabel(f"|H| [{unit}]")
+        ax.set_title(f"{ch.name}: {words}", fontsize=9)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         save_figure(fig, os.path.join(out, f"frf_diagnosis_{ch.name}.png"))

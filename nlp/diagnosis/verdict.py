@@ -5,11 +5,15 @@ ambiguous verdicts name the measurement that would separate the candidates (SUGG
 """
 
 import os
+import textwrap
 
 from nlp.diagnosis.decide import adequate, where
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
-from nlp.diagnosis.fitting import residual_map
+from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.look import Conclusion
+from nlp.diagnosis.plain import finding_line, finding_title, finding_values, hypotheses, \
+    other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, REFERENCES, \
+    REFIT_STATEMENT, REMAINING
 from nlp.diagnosis.plots import plot_diagnosis
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.provenance import provenance
@@ -51,7 +55,7 @@ def statement(r):
                      for k, v in r["parameters"].items())
     if r.get("not_determined"):
         pars += "; not determined by the data: " + ", ".join(r["not_determined"])
-    return f"The data show {WORDS[r['physics']]} {where} ({pars})."
+    return f"{REFIT_STATEMENT}{WORDS[r['physics']]} {where} ({pars})."
 
 
 def public(r):
@@ -182,15 +186,14 @@ def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole):
     """What remains unexplained, parameter changes and extra modes."""
     out = []
     if remaining:
-        out.append("With this added, residuals are still above the noise: more is "
-                   "missing than the candidate families describe.")
+        out.append(REMAINING)
     if verdict == "ambiguous" and not sel.found and not sel.indistinct and not unconfirmed:
         out.append("The model does not explain the data within the noise, and no "
                    "candidate family explains the mismatch.")
     for o in inside["parameter_changes"]:
         out.append(o["statement"])
     if whole and whole["extra_modes"]:
-        out.append("Resonances the model does not have (extra modes): " + "; ".join(
+        out.append(EXTRA_MODES + "; ".join(
             f"{e['frequency_hz']:.2f} Hz (seen by {', '.join(e['channels'])})"
             for e in whole["extra_modes"]) + ".")
     return out
@@ -266,22 +269,44 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
               "provenance": provenance(cfg)}
     _optional_parts(result, screening, checks, nonlin, nonlin_found)
-    _log_verdict(log, verdict, statements, alts, suggestions, fit_before, fit_after)
+    log_conclusion(log, result, physical_references(case))
     return Conclusion(result, case, points.base, base.res.z, improved, z_imp, base.cells,
                       cells_after, " + ".join(r["physics"] for r in found) if found else None)
 
 
-def _log_verdict(log, verdict, statements, alts, suggestions, fit_before, fit_after):
-    log(f"verdict: {verdict}")
-    for st in statements:
+def physical_references(case):
+    """The magnitudes the families' parameters are scaled by (mean floor mass [kg], story
+    stiffness [N/m], damping [N s/m]): an appendage's mass ratio times m_ref is its mass."""
+    refs = case_references(case)
+    return {"m_ref": refs["m_ref"], "k_ref": refs["k_ref"], "c_ref": refs["c_ref"]}
+
+
+def log_conclusion(log, result, refs=None):
+    """The printed conclusion: the verdict, each finding in physical units, the paragraph
+    in plain words, the other statements, hypotheses, alternatives, suggestions, the fit
+    (nlp.diagnosis.plain, as report.html says it)."""
+    log(f"verdict: {result['verdict']}")
+    for f in result["findings"]:
+        log(f"  finding: {finding_title(f)}")
+        for v in finding_values(f, refs):
+            log(f"    {v}")
+        if finding_note(f):
+            log(f"    {finding_note(f)}")
+    log(textwrap.fill("In plain words: " + paragraph(result, refs), 100, initial_indent="  ",
+                      subsequent_indent="  "))
+    for st in unconfirmed_lines(result, refs):
+        log(f"  not confirmed: {st}")
+    for st in other_statements(result):
         log("  " + st)
-    if alts:
-        log("  alternatives: " + "; ".join(where(a) for a in alts))
-    for sg in suggestions:
+    for h in hypotheses(result):
+        log(f"  hypothesis: {h}")
+    for a in result.get("alternatives") or []:
+        log(f"  alternative: {finding_line(a, refs)}")
+    for sg in result.get("suggested_measurements", []):
         log(f"  suggested measurement: {sg}")
-    log(f"  fit before: reduced chi-square {fit_before['reduced_chi2']:.2f}, held-out "
-        f"{fit_before['held_out_chi2']:.2f}; after: {fit_after['reduced_chi2']:.2f}, "
-        f"{fit_after['held_out_chi2']:.2f}")
+    b, a = result["fit"]["before"], result["fit"]["after"]
+    log(f"  fit before: reduced chi-square {b['reduced_chi2']:.2f}, held-out "
+        f"{b['held_out_chi2']:.2f}; after: {a['reduced_chi2']:.2f}, {a['held_out_chi2']:.2f}")
 
 
 def write_conclusion(out, c):
@@ -290,3 +315,6 @@ def write_conclusion(out, c):
     plot_diagnosis(out, c.case, c.base, c.z_base, c.improved, c.z_improved, c.cells_before,
                    c.cells_after, c.family)
     write_json(os.path.join(out, "diagnosis.json"), c.result)
+    # beside diagnosis.json (which it leaves as it was): report.html gives an appendage's
+    # mass in kg from its mass ratio with these
+    write_json(os.path.join(out, REFERENCES), physical_references(c.case))

@@ -64,14 +64,15 @@ class _Quiet:
 class _Bar(_Quiet):
     """A tqdm bar on stderr."""
 
-    def __init__(self, name, total, unit, initial):
+    def __init__(self, name, total, unit, initial, fmt=None):
         # leave=None: a finished outer bar stays as a record of its stage, a nested one (a
         # diagnosis' refits, a batch record's build) goes. A terminal that reports no size
         # (a bare pseudo-terminal) would get an empty bar: 100 x 24 then.
         sized = _columns() > 0
         self._bar = tqdm(total=total, desc=name, unit=unit, initial=initial, file=sys.stderr,
                          dynamic_ncols=sized, ncols=None if sized else 100,
-                         nrows=None if sized else 24, leave=None, mininterval=0.2)
+                         nrows=None if sized else 24, leave=None, mininterval=0.2,
+                         bar_format=fmt)
         self.name = name
 
     def update(self, n=1, **postfix):
@@ -102,11 +103,17 @@ class _Bar(_Quiet):
         self._bar.close()
 
 
+# a pipeline's steps take unequal times: its bar shows the step running, n/N and the time
+# elapsed, but no remaining time or rate (the nested bars of a step with a count do)
+STEPS_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed} elapsed]"
+
+
 @contextmanager
-def stage(name, total=1, unit="step", initial=0, show=True):
+def stage(name, total=1, unit="step", initial=0, show=True, fmt=None):
     """A reporter for one stage of ``total`` items (``initial`` already done); quiet off a
-    terminal, in a worker, or with ``show=False``. ``update()`` after each item."""
-    bar = _Bar(name, total, unit, initial) if show and shown() else _Quiet()
+    terminal, in a worker, or with ``show=False``. ``update()`` after each item; ``fmt``:
+    a tqdm bar_format in place of the default (n/N, elapsed < remaining, rate)."""
+    bar = _Bar(name, total, unit, initial, fmt) if show and shown() else _Quiet()
     try:
         yield bar
     finally:
@@ -117,7 +124,7 @@ def stage(name, total=1, unit="step", initial=0, show=True):
 @contextmanager
 def steps(name, total):
     """A bar of the ``total`` named steps of a pipeline, advanced by :func:`advance`."""
-    with stage(name, total, unit="stage") as bar:
+    with stage(name, total, unit="stage", fmt=STEPS_FORMAT) as bar:
         outer = _OPEN.get(name)
         _OPEN[name] = bar
         try:

@@ -4,8 +4,10 @@
 (summary.json, result.json files and the PNG figures beside them) or a
 diagnosis (diagnosis.json, residual_map.png, frf_diagnosis_*.png). Numbers are
 shown as the console shows them: relative quantities in percent, values to 6
-significant figures, round-off (below 1e-12 of the largest entry) as 0. The
-page is rebuilt identically from the same files.
+significant figures, round-off (below 1e-12 of the largest entry) as 0; a
+diagnosis' findings in physical units with relative errors, as its printed
+conclusion gives them (nlp.diagnosis.plain). The page is rebuilt identically
+from the same files.
 """
 
 import datetime
@@ -15,6 +17,8 @@ import json
 import os
 
 from nlp import __version__
+from nlp.diagnosis.plain import (REFERENCES, finding_note, finding_title, finding_values,
+                                 hypotheses, other_statements, paragraph, unconfirmed_lines)
 from nlp.errors import InputError
 from nlp.output.results import write_atomic
 
@@ -24,7 +28,7 @@ _CSS = """body{font-family:sans-serif;max-width:1150px;margin:2em auto;color:#22
 table{border-collapse:collapse;margin:0.6em 0}td,th{border:1px solid #bbb;padding:3px 8px;
 text-align:right}th{background:#eee}td:first-child,th:first-child{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:4px 0}h2{border-bottom:1px solid #ccc}
-.note{color:#555;font-size:90%}.prov td{text-align:left}.verdict{font-size:120%}"""
+.note{color:#555;font-size:90%}.text td{text-align:left}.prov td{text-align:left}.verdict{font-size:120%}"""
 
 
 def fmt_value(x, sig=6, scale=None):
@@ -273,74 +277,78 @@ def _run_report(out):
     return parts
 
 
-def _location(loc):
-    if not loc:
-        return "global"
-    return ", ".join(f"{k} {'-'.join(map(str, v)) if isinstance(v, list) else v}"
-                     for k, v in loc.items())
-
-
-def _finding_rows(items):
+def _finding_rows(items, refs):
+    """One row per finding: what and where, its parameters in units, its evidence."""
     rows = []
     for f in items:
-        unc = f.get("uncertainty") or {}
-        params = "; ".join(f"{k} = {fmt_value(v, 4)}" + (f" ± {fmt_value(unc[k], 2)}"
-                                                         if unc.get(k) is not None else "")
-                           for k, v in (f.get("parameters") or {}).items()
-                           if isinstance(v, (int, float)))
         ev = f.get("evidence") or {}
-        rows.append([f.get("physics", ""), _location(f.get("location")), params,
+        rows.append([finding_title(f), "; ".join(finding_values(f, refs)),
                      fmt_value(ev.get("delta_bic"), 4), fmt_value(ev.get("held_out_chi2"), 4)])
     return rows
 
 
+def _items(title, lines, note=""):
+    if not lines:
+        return []
+    return [f"<h2>{html.escape(title)}</h2>"] + ([f"<p class='note'>{html.escape(note)}</p>"]
+                                                 if note else []) + [
+        "<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in lines) + "</ul>"]
+
+
+def _fit_section(fit, noise):
+    if not fit:
+        return []
+    keys = ["objective", "reduced_chi2", "held_out_chi2"]
+    parts = ["<h2>Fit before and after</h2>",
+             _table(["", "objective", "reduced chi-square", "held-out chi-square"],
+                    [[k, *[(fit.get(k) or {}).get(x) for x in keys]]
+                     for k in ("before", "after") if k in fit])]
+    b = fit.get("before") or {}
+    if b.get("reduced_chi2_sd"):
+        parts.append(f"<p>With a right noise model the baseline's reduced chi-square would be "
+                     f"1 +- {b['reduced_chi2_sd']:.2f} (one standard deviation) on these "
+                     f"points: their errors are shared between channels and neighbouring "
+                     f"bins, {b['effective_points']:.0f} effective independent points.</p>")
+    if (noise or {}).get("statement"):
+        parts.append(f"<p class='note'>{html.escape(noise['statement'])}</p>")
+    return parts
+
+
 def _diagnosis_report(out):
+    """Verdict and findings first (in physical units, nlp.diagnosis.plain), the paragraph in
+    plain words, what else was seen, the evidence and figures; provenance last."""
     dpath = os.path.join(out, "diagnosis.json")
     d = _load(dpath)
+    rpath = os.path.join(out, REFERENCES)
+    refs = _load(rpath) if os.path.isfile(rpath) else None
     folder = os.path.basename(os.path.normpath(out)).removesuffix(".staging")
     parts = _head(f"frf-nlp diagnosis: {d.get('case', folder)}")
     parts.append(f"<p class='verdict'>Verdict: <b>{html.escape(d['verdict'].replace('_', ' '))}"
                  "</b></p>")
-    parts.append("<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in d.get("summary", []))
-                 + "</ul>")
-    parts.append(_provenance(d, dpath))
-    hdr = ["physics", "location", "parameters (± standard error)", "BIC change",
+    hdr = ["what and where", "parameters (± standard error)", "BIC change",
            "held-out chi-square"]
     if d.get("findings"):
-        parts += ["<h2>Findings</h2>", _table(hdr, _finding_rows(d["findings"]))]
-        parts += [f"<p>{html.escape(f['statement'])}</p>" for f in d["findings"]
-                  if f.get("statement")]
+        parts += ["<h2>Findings</h2>", _table(hdr, _finding_rows(d["findings"], refs), "text")]
+        parts += [f"<p>{html.escape(n)}</p>" for n in map(finding_note, d["findings"]) if n]
+    parts += ["<h2>In plain words</h2>", f"<p>{html.escape(paragraph(d, refs))}</p>"]
+    parts += _items("Also seen", other_statements(d))
+    parts += _items("Not confirmed by the other tests", unconfirmed_lines(d, refs))
+    parts += _items("What the updated parameters may have absorbed (hypotheses)", hypotheses(d),
+                    "Effects the case's own parameters can take up, listed only where the "
+                    "fitted parameters point at them. They are not findings.")
     if d.get("alternatives"):
         parts += ["<h2>Alternatives (fit worse, or tie)</h2>",
-                  _table(hdr, _finding_rows(d["alternatives"]))]
-    if d.get("absorbed"):
-        parts += ["<h2>Absorbed by the updated parameters</h2>",
-                  _table(["physics", "location", "fraction left"],
-                         [[a.get("physics"), _location(a.get("location")),
-                           fmt_percent(a.get("fraction_left"), 1, False)] for a in d["absorbed"]])]
-    fit = d.get("fit") or {}
-    if fit:
-        keys = ["objective", "reduced_chi2", "held_out_chi2"]
-        parts += ["<h2>Fit before and after</h2>",
-                  _table(["", "objective", "reduced chi-square", "held-out chi-square"],
-                         [[k, *[(fit.get(k) or {}).get(x) for x in keys]]
-                          for k in ("before", "after") if k in fit])]
-        b = fit.get("before") or {}
-        if b.get("reduced_chi2_sd"):
-            parts.append(f"<p>With a right noise model the baseline's reduced chi-square would be "
-                         f"1 +- {b['reduced_chi2_sd']:.2f} (one standard deviation) on these "
-                         f"points: their errors are shared between channels and neighbouring "
-                         f"bins, {b['effective_points']:.0f} effective independent points.</p>")
+                  _table(hdr, _finding_rows(d["alternatives"], refs), "text")]
+    parts += _items("Suggested measurements", d.get("suggested_measurements") or [])
+    parts += _fit_section(d.get("fit") or {}, d.get("noise"))
     parts.append("<h2>Residual map</h2><p>Mean squared residual / noise in each channel and "
                  "band, fitted points and held-out shoulders, before and after the added "
-                 "physics.</p>")
+                 "physics; 1 (log10: 0) is the noise level, white cells have no held-out "
+                 "point near their band.</p>")
     parts += _imgs(out, out, "residual_map.png")
-    if d.get("suggested_measurements"):
-        parts += ["<h2>Suggested measurements</h2>",
-                  "<ul>" + "".join(f"<li>{html.escape(x)}</li>"
-                                   for x in d["suggested_measurements"]) + "</ul>"]
     parts.append("<h2>FRFs: measured, baseline and with the added physics</h2>")
     parts += _imgs(out, out, "frf_diagnosis_*.png")
+    parts.append(_provenance(d, dpath))
     parts.append("</body></html>")
     return parts
 

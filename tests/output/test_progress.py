@@ -12,7 +12,10 @@ import sys
 import termios
 from pathlib import Path
 
+import pytest
+
 from nlp.output import progress
+from support.diagnosis import coupled_case
 
 ROOT = Path(__file__).resolve().parents[2]
 CASE = ROOT / "cases" / "four_story_shear_frame" / "case.yaml"
@@ -26,7 +29,7 @@ def _env(code_root):
     return env
 
 
-def _under_pty(args, out):
+def _under_pty(args, out, timeout=120):
     """(stdout, stderr) of ``python -m nlp args --out out`` with stderr a 30 x 120 terminal."""
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 120, 0, 0))
@@ -44,13 +47,13 @@ def _under_pty(args, out):
         err += chunk
     os.close(master)
     stdout = proc.stdout.read().decode()
-    assert proc.wait(timeout=120) == 0
+    assert proc.wait(timeout=timeout) == 0
     return stdout, err.decode(errors="replace")
 
 
-def _piped(code_root, args, out):
+def _piped(code_root, args, out, timeout=120):
     proc = subprocess.run([sys.executable, "-m", "nlp", *args, "--out", str(out)],
-                          capture_output=True, env=_env(code_root), cwd=ROOT, timeout=120)
+                          capture_output=True, env=_env(code_root), cwd=ROOT, timeout=timeout)
     assert proc.returncode == 0, proc.stderr.decode()
     return proc.stdout.decode(), proc.stderr.decode()
 
@@ -92,6 +95,25 @@ def test_run_piped_prints_only_its_log_lines(tmp_path):
     assert not BAR.search(stdout) and "search: 4/4 local solves" in stdout
 
 
+@pytest.mark.slow  # two diagnoses of a small case: about a minute on 2 cores
+def test_diagnose_shows_stage_round_and_elapsed_time_on_a_terminal_only(tmp_path):
+    """Under a terminal the diagnosis bar names the stage running, the round, n/N stages and
+    the time elapsed (no remaining time: the stages take unequal times), and the round's
+    refits their count with elapsed < remaining. Piped, stderr stays empty and stdout holds
+    the same lines."""
+    coupled_case(tmp_path)
+    args = ["diagnose", str(tmp_path / "case.yaml")]
+    stdout, err = _under_pty(args, tmp_path / "tty", timeout=600)
+    text = re.sub(r"\x1b\[[0-9;]*[A-Za-z]", "", err)
+    for name in ("baseline", "selection, round 1 of at most 3", "checks", "verdict"):
+        assert re.search(rf"diagnose: {name}: +\d+%\|.*\| \d/\d+ \[\d\d:\d\d elapsed\]", text), name
+    assert re.search(r"candidate refits: +\d+%\|.*\| (\d+)/\1 \[\d\d:\d\d<\d\d:\d\d", text)
+    assert not BAR.search(stdout) and "verdict: missing_physics" in stdout
+    piped, stderr = _piped(ROOT, args, tmp_path / "piped", timeout=600)
+    assert stderr == ""
+    assert _comparable(piped, tmp_path / "piped") == _comparable(stdout, tmp_path / "tty")
+
+
 class _Terminal(io.StringIO):
     def isatty(self):
         return True
@@ -120,4 +142,5 @@ def test_reporters_draw_on_a_terminal_and_do_nothing_elsewhere(monkeypatch):
     progress.advance("diagnose", "after")           # no bar open: nothing happens
     text = tty.getvalue()
     assert "diagnose: baseline, round 1" in text and "3/3 [" in text
+    assert re.search(r"3/3 \[\d\d:\d\d elapsed\]", text)   # steps: no remaining time
     assert lines == ["a log line"]

@@ -55,3 +55,23 @@ def baseline_fit(cfg, starts=6):
     pr = diagnosis_problem(case, target)
     res, _ = scatter_best(pr, SearchConfig(starts=starts, seed=0, workers=1))
     return case, {"current": [], "z": res.z, "chi": 2 * res.f, "held": 1.0, "problem": pr}
+
+
+def coupled_case(folder, kc=900.0, seed=3):
+    """A 3-storey frame (5 kg floors, Rayleigh damping) with a spring kc [N/m] between floors
+    1 and 3 that its case.yaml leaves out: accelerances to a force at floor 1 with 1 %
+    complex noise in frf.npz. One round of candidates finds the spring (about 30 s)."""
+    rng = np.random.default_rng(seed)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, _ = frame_matrices(m, k)
+    e = np.array([1.0, 0.0, -1.0])
+    K = shear_K(k) + kc * np.outer(e, e)
+    H = np.empty((3, F.size), complex)
+    for i, f in enumerate(F):
+        w = 2 * np.pi * f
+        H[:, i] = -w**2 * np.linalg.solve(K - w**2 * M + 1j * w * C, np.eye(3)[0])
+    H *= 1 + 0.01 * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
+    write_frf(folder, "frf.npz", H)
+    return write_case_yaml(folder, m, k, [("frf.npz", 1)],
+                           {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                           {"model": "rayleigh", "zeta": 0.015})

@@ -1,0 +1,177 @@
+"""The conclusion of a diagnosis in an engineer's words, from diagnosis.json.
+
+The printed conclusion of ``frf-nlp diagnose`` (:mod:`nlp.diagnosis.verdict`) and
+report.html (:mod:`nlp.output.report`) both come from here, so they say the same: each
+finding with its parameters in physical units (:mod:`nlp.diagnosis.units`), one paragraph
+saying what is missing, where, how big and how much the fit improved, and the effects the
+updated parameters may have absorbed, worded as hypotheses.
+"""
+
+from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
+
+__all__ = ["finding_title", "finding_values", "finding_line", "paragraph", "hypotheses",
+           "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES"]
+
+REFERENCES = "references.json"   # beside diagnosis.json: the families' reference magnitudes
+# statements of verdict.py that the paragraph says in its own words (not repeated)
+REMAINING = ("With this added, residuals are still above the noise: more is missing than the "
+             "candidate families describe.")
+EXTRA_MODES = "Resonances the model does not have (extra modes): "
+REFIT_STATEMENT = "The data show "   # how a refitted finding's statement begins
+
+# the parameter that says how big a finding is (else its first one)
+SIZE = {"base_flexibility": ("log10_kb",), "secondary_oscillator": ("mu", "f_s"),
+        "nonlinearity": ("relative_change",)}
+
+
+def finding_title(f):
+    """'a flexible base in the whole structure'."""
+    return f"{FAMILY_WORDS.get(f.get('physics'), f.get('physics', ''))} {place(f.get('location'))}"
+
+
+def finding_values(f, refs=None):
+    """Each parameter of a finding in units with its relative error, then the parameters
+    the data leave open."""
+    vals = [f"{q.label} {describe(q)}" for _, q in quantities(f, refs)]
+    if f.get("not_determined"):
+        vals.append("not determined by the data: " + ", ".join(
+            f"{quantity(f.get('physics'), n, 0.0).label} ({n})" for n in f["not_determined"]))
+    return vals
+
+
+def finding_note(f):
+    """The finding's own statement when it says more than its values (how an effect inside
+    the model class, a phase delay or a level dependence was found); None for a refit's
+    statement, which only repeats the values as fitted (verdict.statement: REFIT_STATEMENT)."""
+    st = f.get("statement")
+    return None if not st or st.startswith(REFIT_STATEMENT) else st
+
+
+def finding_line(f, refs=None):
+    """One line: what, where, and its values."""
+    return f"{finding_title(f)}: " + "; ".join(finding_values(f, refs))
+
+
+def _size(f, refs):
+    """The quantities that say how big a finding is, with their errors."""
+    qs = quantities(f, refs)
+    heads = SIZE.get(f.get("physics"))
+    picked = [q for n, q in qs if heads and n.startswith(heads)] or [q for _, q in qs[:1]]
+    return ", ".join(describe(q) for q in picked)
+
+
+def _fit_words(fit):
+    """How much the fit improved: reduced chi-square before -> after, held-out too."""
+    b, a = fit.get("before") or {}, fit.get("after") or {}
+    if not b:
+        return ""
+    sd = b.get("reduced_chi2_sd")
+    noise = f" (a right noise model gives 1 ± {sd:.2f} here)" if sd else " (1 is the noise level)"
+    if "other_level_held_out_chi2" in a and a.get("reduced_chi2") == b.get("reduced_chi2"):
+        return (f"Across excitation levels, the other level's held-out misfit falls from "
+                f"{fmt_sig(b['other_level_held_out_chi2'])} with one linear model to "
+                f"{fmt_sig(a['other_level_held_out_chi2'])} with a model for each level.")
+    return (f"The reduced chi-square of the fitted points goes from {fmt_sig(b['reduced_chi2'])} "
+            f"to {fmt_sig(a['reduced_chi2'])}{noise}, and that of the held-out points (near "
+            f"the windows, not fitted) from {fmt_sig(b['held_out_chi2'])} to "
+            f"{fmt_sig(a['held_out_chi2'])}.")
+
+
+def paragraph(d, refs=None):
+    """What is missing, where, how big, and how much the fit improved (diagnosis.json d)."""
+    verdict, found, fit = d.get("verdict"), d.get("findings") or [], d.get("fit") or {}
+    b = fit.get("before") or {}
+    if verdict == "setup_error":
+        return ("The data contradict the case's set-up (see below); no physics is blamed "
+                "until the case or the data are corrected.")
+    if verdict == "adequate":
+        sd = b.get("reduced_chi2_sd")
+        return (f"Nothing is missing that the candidate families describe: the updated model "
+                f"fits the measured FRFs within their noise (reduced chi-square "
+                f"{fmt_sig(b.get('reduced_chi2'))}"
+                + (f", where a right noise model gives 1 ± {sd:.2f}" if sd else "")
+                + f"; held-out points {fmt_sig(b.get('held_out_chi2'))}).")
+    parts = []
+    if found:
+        what = [f"{finding_title(f)}, {_size(f, refs)}" for f in found]
+        parts.append("The model leaves out " + "; and ".join(what) + ". " + ("With it added, "
+                     if len(found) == 1 else "With these added, ") + _lower(_fit_words(fit)))
+    else:
+        parts.append("The model does not explain the data, and the data cannot tell which "
+                     "physics is missing" + (": " + _join([finding_title(f) for f in
+                                                           d.get("indistinguishable") or
+                                                           d.get("unconfirmed") or []])
+                                             if d.get("indistinguishable") or d.get("unconfirmed")
+                                             else "") + ". " + _fit_words(fit))
+    if d.get("remaining_mismatch"):
+        parts.append("The fit is still worse than the noise allows: more is missing than "
+                     "the candidate families describe.")
+    extra = d.get("extra_modes") or []
+    if extra:
+        parts.append("The data also show resonances the model does not have, at "
+                     + _join([f"{e['frequency_hz']:.2f} Hz" for e in extra]) + ".")
+    if verdict == "ambiguous" and d.get("suggested_measurements"):
+        parts.append("The suggested measurements below would tell the candidates apart.")
+    return " ".join(p for p in parts if p)
+
+
+def _join(items):
+    items = list(items)
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _lower(text):
+    return text[:1].lower() + text[1:]
+
+
+def hypotheses(d):
+    """The absorbed effects the fitted parameters point at, as hypotheses (entries without
+    such a pointer, written by older versions, are left out: they show nothing)."""
+    params = {p["parameter"]: p for p in d.get("fitted_parameters") or []}
+    out = []
+    for a in d.get("absorbed") or []:
+        if not a.get("indicator"):
+            continue
+        loc = a.get("location") or {}
+        p = params.get(f"m{loc.get('floor')}") if a.get("physics") == "added_mass" else None
+        if p and p.get("standard_error"):
+            z = p["relative_change"] / p["standard_error"]
+            prior = (f", {p['z_prior']:.1f} prior sigmas" if p.get("z_prior") is not None else "")
+            seen = (f"the fitted mass of floor {loc['floor']} rose "
+                    f"{100 * p['relative_change']:.0f} % ({z:.0f} standard errors{prior})")
+        else:
+            seen = a["indicator"]
+        out.append(f"{_upper(seen)}: {FAMILY_WORDS.get(a['physics'], a['physics'])} "
+                   f"{place(loc)} would look like this, and the updated parameters can take it "
+                   "up (a hypothesis, not a finding).")
+    return out
+
+
+def _upper(text):
+    return text[:1].upper() + text[1:]
+
+
+def other_statements(d):
+    """The summary's statements that the paragraph and unconfirmed_lines do not say in
+    their own words: ties, parameter changes, level dependence, ..."""
+    own = {f.get("statement") for f in d.get("findings") or []} | {REMAINING}
+    heads = tuple(u["statement"][:-1] for u in d.get("unconfirmed") or [] if u.get("statement"))
+    heads += (EXTRA_MODES,)
+    return [s for s in d.get("summary") or [] if s not in own and not (heads and s.startswith(heads))]
+
+
+def unconfirmed_lines(d, refs=None):
+    """Candidates that did not hold on another test of the structure, with their values
+    here and there in units and the reason."""
+    out = []
+    for c in d.get("consistency") or []:
+        if c.get("holds", True):
+            continue
+        here = {"physics": c["physics"], "parameters": c.get("here") or {},
+                "uncertainty": c.get("here_uncertainty") or {}}
+        there = {"physics": c["physics"], "parameters": c.get("there") or {},
+                 "uncertainty": c.get("there_uncertainty") or {}}
+        out.append(f"{finding_title(c)}: " + "; ".join(finding_values(here, refs))
+                   + f"; on {c['test']}: " + "; ".join(finding_values(there, refs))
+                   + f". It does not hold there ({c.get('reason', '')}): not accepted.")
+    return out
