@@ -98,10 +98,10 @@ class Bilinear:
         """A_i q on the stacked nonzero rows, (rows, N) complex."""
         return real_times_complex(self.A, Q)
 
-    def real_form(self, AQ, Lam_c, W):
-        """Re(W_k lambda_c^T A_i q) for all i, (k, N): AQ from :meth:`products`, W (N,)."""
-        P = Lam_c[self.rows] * (AQ * W)
-        return self.S @ P.real
+    def real_form(self, AQ, Lam_c):
+        """Re(lambda_c^T A_i q) for all i, (k, N); AQ from :meth:`products` (any complex weight
+        per frequency folded into Lam_c or AQ)."""
+        return self.S @ (Lam_c[self.rows] * AQ).real
 
     def __call__(self, Q, Lam):
         """Q (n, N), Lam (n_ch, n, N) complex -> (k, n_ch, N)."""

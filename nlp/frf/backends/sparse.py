@@ -35,6 +35,7 @@ __all__ = ["SparseFRF", "BAND_MAX"]
 BAND_MAX = 40  # half-bandwidth up to which the banded LU beats SuperLU (measured at n = 2000)
 BATCH_MAX = 24  # up to this size one batched dense LU over all frequencies beats the banded LU (measured)
 CHUNK_BYTES = 2 ** 24  # working memory of one chunk of frequencies: 16 MiB keeps it near the caches (measured)
+CHUNK_MIN = 256  # frequencies per chunk at least: each of the n steps of a banded pass then does real work
 
 
 def _span(ix):
@@ -170,7 +171,7 @@ class SparseFRF:
                     Xp[:, :, k] = solve_pivoted(Lb[:, :, i], rp)
                 self.fallbacks += bad.size
             X = np.empty((rhs.shape[1], n, N), complex)
-            X.transpose(1, 0, 2)[...] = Xp[self.inv]
+            np.take(Xp, self.inv, axis=0, out=X.transpose(1, 0, 2), mode="clip")  # one copy
             return X
         X = np.empty((rhs.shape[1], n, N), complex)
         size = n + m
@@ -199,7 +200,7 @@ class SparseFRF:
         n_rhs = 1 + len(self.power)
         per = 3 * n_rhs * size + 2 * (getattr(self, "bw", 0) + 1) * n + 3 * nz * n_res
         per += size * size if self.batched else 0
-        step = max(16, CHUNK_BYTES // (16 * per))
+        step = max(CHUNK_MIN, CHUNK_BYTES // (16 * per))
         return [slice(k, min(k + step, N)) for k in range(0, N, step)]
 
     # --------------------------------------------------------------- evaluate
@@ -251,32 +252,31 @@ class SparseFRF:
     def _dHq(self, st, w, q, Lam):
         """d(E^T q)/dz, (n_z, n_ch, N): Eqns 23-24 as bilinear forms lambda_c^T (db - dZ q)."""
         n_ch = Lam.shape[0]
-        D = np.zeros((self.params.n_z, w.size, 2 * n_ch))
+        D = np.zeros((self.params.n_z, 2 * n_ch, w.size))
         fac = np.ones((2 * n_ch, w.size), complex)
         fac[1::2] = -1j                               # Re(-j x) = Im(x)
         self._jacobian_into(D, st, w, q, Lam, fac, np.repeat(np.arange(n_ch), 2))
-        return (D[:, :, 0::2] + 1j * D[:, :, 1::2]).transpose(0, 2, 1)
+        return D[:, 0::2] + 1j * D[:, 1::2]
 
     def _jacobian_into(self, D, st, w, q, Lam, G, ch):
-        """D[z, k, i] += Re(G[i, k] d(E^T q)_{ch[i]}/dz_z) at frequencies w: D (n_z, N, n_res).
+        """D[z, i, k] += Re(G[i, k] d(E^T q)_{ch[i]}/dz_z) at frequencies w: D (n_z, n_res, N).
 
-        Real arithmetic throughout: each bilinear form lambda^T A (q W) with its complex
-        weight W folded into q, its real part taken before the sum over the nonzeros.
+        Real arithmetic where it can: the weight G folds into the adjoint (Lg), the group
+        coefficients into A q, and each bilinear form's real part is taken before its sum.
         """
         jw = 1j * w
-        coefK, coefM = -(1 + jw * st.cK), w ** 2 - jw * st.cM
-        AK = self.bil_K.products(q) if self.z_a.size else None
-        AM = self.bil_M.products(q) if self.z_b.size else None
+        AK = self.bil_K.products(q) * (-(1 + jw * st.cK)) if self.z_a.size else None
+        AM = self.bil_M.products(q) * (w ** 2 - jw * st.cM) if self.z_b.size else None
         dD = self._damping_terms(st, q, Lam) * (-jw) if self.z_d.size else None
         at_a, at_b, at_d = self.at
         for i, c in enumerate(ch):
-            out, L, g = D[:, :, i], Lam[c], G[i]
+            out, Lg = D[:, i], Lam[c] * G[i]
             if AK is not None:
-                out[at_a] += self.bil_K.real_form(AK, L, coefK * g)
+                out[at_a] += self.bil_K.real_form(AK, Lg)
             if AM is not None:
-                out[at_b] += self.bil_M.real_form(AM, L, coefM * g) + self.B_z @ (L * g).real
+                out[at_b] += self.bil_M.real_form(AM, Lg) + self.B_z @ Lg.real
             if dD is not None:
-                out[at_d] += self.Td_free @ (dD[:, c] * g).real
+                out[at_d] += self.Td_free @ (dD[:, c] * G[i]).real
 
     def _channels(self, st, w, jacobian):
         """(H (n_ch, N), fac (n_ch, N), q, Lam): H = fac E^T q + absolute (Lam None
@@ -316,13 +316,15 @@ class SparseFRF:
         ch = np.arange(n_res) // (n_res // n_ch)
         st = self._state(z)
         r = np.empty(N * n_res)
-        Jt = np.zeros((nz, N, n_res)) if jacobian else None
+        Jt = np.empty((nz, N, n_res)) if jacobian else None
         for sl in self._chunks(N, n_res):
             H, fac, q, Lam = self._channels(st, w[sl], jacobian)
             R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
             r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
-            if jacobian:
-                self._jacobian_into(Jt[:, sl], st, w[sl], q, Lam, G, ch)
+            if jacobian:  # a contiguous block for the sums, one transposing copy into J
+                D = np.zeros((nz, n_res, sl.stop - sl.start))
+                self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
+                Jt[:, sl] = D.transpose(0, 2, 1)
         return r, (Jt.reshape(nz, -1).T if jacobian else None)
 
     def cached(self, z, data_key, data):
