@@ -2,8 +2,10 @@
 
 For each frequency w_k the system of :mod:`nlp.frf.backends.system` is
 factorised once (small systems: one batched dense LU over all frequencies;
-else a banded LU after reverse Cuthill-McKee ordering when the band is
-narrow, SuperLU on the same ordering without pivoting otherwise (a minimum-degree
+else, when the band is narrow after reverse Cuthill-McKee ordering, one batched
+banded L D L^T over a chunk of frequencies (:mod:`nlp.frf.backends.banded`:
+no pivoting, growth-checked, LAPACK with pivoting where the check fails),
+SuperLU on the same ordering without pivoting otherwise (a minimum-degree
 ordering with pivoting for the bordered damping system); a rank-m
 damping term U S U^T enters as a bordered system [[Z_s, jw U S], [U^T, -I]],
 so C never fills Z in). The same factors give
@@ -15,7 +17,9 @@ so C never fills Z in). The same factors give
 and dZ/dtheta_i is a fixed sparse matrix times a scalar (M and K are linear
 in alpha and beta, Eqns 23-24), so each sensitivity is a sparse bilinear form:
 the cost is (1 + n_channels) solves per frequency whatever the number of
-parameters. Runs in numpy/scipy and enters the CasADi NLP as callbacks.
+parameters. Frequencies run in chunks (memory flat in N); J is formed in real
+arithmetic, chunk by chunk (:meth:`SparseFRF.residuals`). Runs in numpy/scipy
+and enters the CasADi NLP as callbacks.
 """
 
 from types import SimpleNamespace
@@ -171,7 +175,8 @@ class SparseFRF:
                     Xp[:, :, k] = solve_pivoted(Lb[:, :, i], rp)
                 self.fallbacks += bad.size
             X = np.empty((rhs.shape[1], n, N), complex)
-            np.take(Xp, self.inv, axis=0, out=X.transpose(1, 0, 2), mode="clip")  # one copy
+            for r in range(X.shape[0]):  # rows of N contiguous values: a fast gather
+                X[r] = Xp[self.inv, r]
             return X
         X = np.empty((rhs.shape[1], n, N), complex)
         size = n + m
