@@ -325,6 +325,7 @@ class SparseFRF:
         for sl in self._chunks(N, n_res):
             H, fac, q, Lam = self._channels(st, w[sl], jacobian)
             R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
+            G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
             r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
             if jacobian:  # a contiguous block for the sums, one transposing copy into J
                 D = np.zeros((nz, n_res, sl.stop - sl.start))
