@@ -139,3 +139,17 @@ def test_growth_bounds_every_residual_and_flags_a_zero_pivot(b):
         assert np.all(np.abs(R).max(axis=0) <= bound)
         ref = np.linalg.solve(Z[k], rhs)
         assert np.max(np.abs(X[:, :, k] - ref)) < 1e-10 * np.abs(ref).max()
+
+
+def test_frf_sensitivities_equal_central_differences():
+    """SparseFRF.frf(z, w, jacobian=True): complex dH/dz against central differences of H."""
+    _, pr, omega = tall_problem(32, every=16)
+    ev = pr.evaluator
+    z = pr.params.z0 + np.random.default_rng(4).uniform(-0.05, 0.05, pr.params.n_z)
+    H, dH = ev.frf(z, omega, jacobian=True)
+    assert np.array_equal(H, ev.frf(z, omega))
+    for j in (3, 40, pr.params.n_z - 1):
+        e = np.zeros(pr.params.n_z)
+        e[j] = 1e-6
+        fd = (ev.frf(z + e, omega) - ev.frf(z - e, omega)) / 2e-6
+        assert np.max(np.abs(dH[j] - fd)) < 1e-6 * np.abs(fd).max(), j
