@@ -2,8 +2,10 @@
 
 For each frequency w_k the system of :mod:`nlp.frf.backends.system` is
 factorised once (small systems: one batched dense LU over all frequencies;
-else a banded LU after reverse Cuthill-McKee ordering when the band is
-narrow, SuperLU on the same ordering without pivoting otherwise (a minimum-degree
+else, when the band is narrow after reverse Cuthill-McKee ordering, one batched
+banded L D L^T over a chunk of frequencies (:mod:`nlp.frf.backends.banded`:
+no pivoting, growth-checked, LAPACK with pivoting where the check fails),
+SuperLU on the same ordering without pivoting otherwise (a minimum-degree
 ordering with pivoting for the bordered damping system); a rank-m
 damping term U S U^T enters as a bordered system [[Z_s, jw U S], [U^T, -I]],
 so C never fills Z in). The same factors give
@@ -15,103 +17,36 @@ so C never fills Z in). The same factors give
 and dZ/dtheta_i is a fixed sparse matrix times a scalar (M and K are linear
 in alpha and beta, Eqns 23-24), so each sensitivity is a sparse bilinear form:
 the cost is (1 + n_channels) solves per frequency whatever the number of
-parameters. Runs in numpy/scipy and enters the CasADi NLP as callbacks.
+parameters. Frequencies run in chunks (memory flat in N); J is formed in real
+arithmetic, chunk by chunk (:meth:`SparseFRF.residuals`). Runs in numpy/scipy
+and enters the CasADi NLP as callbacks.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import casadi as ca
 
+from nlp.frf.backends.banded import lower_band, solve_banded_batch, solve_pivoted
+from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
 from nlp.frf.forms import POWER
 
 __all__ = ["SparseFRF", "BAND_MAX"]
 
 BAND_MAX = 40  # half-bandwidth up to which the banded LU beats SuperLU (measured at n = 2000)
 BATCH_MAX = 24  # up to this size one batched dense LU over all frequencies beats the banded LU (measured)
+CHUNK_BYTES = 2 ** 24  # working memory of one chunk of frequencies: 16 MiB keeps it near the caches (measured)
+CHUNK_MIN = 256  # frequencies per chunk at least: each of the n steps of a banded pass then does real work
 
 
-def _aggregate(mats, W, n):
-    """Matrices sum_i W[i, j] A_i, one per column j of W (sparse)."""
-    r, c, v, which = _triplets(mats)
-    out = []
-    for j in range(W.shape[1]):
-        wv = W[which, j] * v if v.size else v
-        keep = wv != 0
-        out.append(sp.csc_matrix((wv[keep], (r[keep], c[keep])), shape=(n, n)))
-    return out
-
-
-def _triplets(mats):
-    """(rows, cols, values, matrix index) of all nonzeros of a list of sparse matrices."""
-    parts = []
-    for i, A in enumerate(mats):
-        A = A if sp.isspmatrix_csc(A) else sp.csc_matrix(A)
-        cols = np.repeat(np.arange(A.shape[1]), np.diff(A.indptr))
-        parts.append((A.indices, cols, A.data, np.full(A.data.size, i)))
-    if not parts:
-        return (np.zeros(0, int),) * 2 + (np.zeros(0),) + (np.zeros(0, int),)
-    return tuple(np.concatenate(x) for x in zip(*parts))
-
-
-class _Pattern:
-    """The union sparsity pattern of fixed matrices, and each one's values on it.
-
-    ``values(k0, k1)`` is a sparse (nnz, k1 - k0) matrix whose column j holds matrix
-    k0 + j on the pattern, so a linear combination of the matrices is one sparse product.
-    """
-
-    def __init__(self, n, mats):
-        rows, cols, data, which = _triplets(mats)
-        rows = np.concatenate([rows, np.arange(n)])  # the diagonal always
-        cols = np.concatenate([cols, np.arange(n)])
-        key = cols.astype(np.int64) * n + rows          # column-major, as CSC stores it
-        uniq, pos = np.unique(key, return_inverse=True)
-        self.rows, self.cols = (uniq % n).astype(int), (uniq // n).astype(int)
-        self.P = sp.csc_matrix((np.ones(uniq.size), (self.rows, self.cols)), shape=(n, n))
-        self.P.sort_indices()
-        m = data.size
-        self.V = sp.csc_matrix((data, (pos[:m], which)), shape=(uniq.size, len(mats)))
-
-    def values(self, k0, k1):
-        return sp.csc_matrix(self.V[:, k0:k1])
-
-    def value(self, k):
-        return self.V[:, k].toarray().ravel()
-
-
-class _Bilinear:
-    """lambda_c^T A_i q for a list of fixed sparse A_i, touching only their nonzero rows.
-
-    The nonzero rows of all A_i are stacked into one sparse matrix (row t belongs to
-    matrix seg[t] and is row rows[t] of it), so every product is one sparse call.
-    """
-
-    def __init__(self, mats, n):
-        self.k = len(mats)
-        r, c, v, which = _triplets(mats)
-        if not v.size:
-            self.A = None
-            return
-        key, pos = np.unique(which.astype(np.int64) * n + r, return_inverse=True)
-        self.rows = (key % n).astype(int)
-        seg = (key // n).astype(int)
-        self.A = sp.csr_matrix((v, (pos, c)), shape=(key.size, n))
-        self.S = sp.csr_matrix((np.ones(key.size), (seg, np.arange(key.size))),
-                               shape=(self.k, key.size))
-
-    def __call__(self, Q, Lam):
-        """Q (n, N), Lam (n, n_ch, N) -> (k, n_ch, N)."""
-        n_ch, N = Lam.shape[1], Lam.shape[2]
-        out = np.zeros((self.k, n_ch, N), complex)
-        if self.A is None:
-            return out
-        AQ = self.A @ Q
-        for c in range(n_ch):
-            out[:, c, :] = self.S @ (Lam[self.rows, c, :] * AQ)
-        return out
+def _span(ix):
+    """A slice for a run of consecutive indices (a view, not a copy, when indexing), else ix."""
+    if ix.size and np.array_equal(ix, np.arange(ix[0], ix[0] + ix.size)):
+        return slice(int(ix[0]), int(ix[0]) + ix.size)
+    return ix
 
 
 class SparseFRF:
@@ -147,7 +82,7 @@ class SparseFRF:
         self._damp = ca.Function("damping_structure", [th], [out, ca.jacobian(out, th)])
         # the pattern of Z: K0, M0, K_r, M_r, D_j
         mats = [system.K0, system.M0, *system.K_infl, *system.M_infl, *system.dashpots]
-        self.pat = _Pattern(n, mats)
+        self.pat = Pattern(n, mats)
         na, nb = len(system.K_infl), len(system.M_infl)
         self.VK = self.pat.values(2, 2 + na)
         self.VM = self.pat.values(2 + na, 2 + na + nb)
@@ -160,13 +95,18 @@ class SparseFRF:
         self.z_a = np.nonzero(np.any(Ta != 0, axis=0))[0]
         self.z_b = np.nonzero(np.any(Tb != 0, axis=0))[0]
         self.free_d = np.nonzero(np.any(Td != 0, axis=1))[0]
-        self.Td_free = np.ascontiguousarray(Td[self.free_d].T)  # (n_z, free damping)
-        self.bil_K = _Bilinear(_aggregate(system.K_infl, Ta[:, self.z_a], n), n)
-        self.bil_M = _Bilinear(_aggregate(system.M_infl, Tb[:, self.z_b], n), n)
-        self.bil_D = _Bilinear(system.dashpots, n)
+        Td_free = Td[self.free_d].T  # (n_z, free damping)
+        self.z_d = np.nonzero(np.any(Td_free != 0, axis=1))[0]
+        self.Td_free = np.ascontiguousarray(Td_free[self.z_d])
+        self.at = [_span(x) for x in (self.z_a, self.z_b, self.z_d)]  # where J's columns go
+        self.bil_K = Bilinear(aggregate(system.K_infl, Ta[:, self.z_a], n), n)
+        self.bil_M = Bilinear(aggregate(system.M_infl, Tb[:, self.z_b], n), n)
+        self.bil_D = Bilinear(system.dashpots, n)
         self.B_infl = np.array(system.b_infl).reshape(len(system.b_infl), n)
-        self.B_z = Tb[:, self.z_b].T @ self.B_infl if self.nb else np.zeros((0, n))
+        # db/dz: sparse (ground input -M_r r has the few nonzeros of M_r)
+        self.B_z = sp.csr_matrix(Tb[:, self.z_b].T @ self.B_infl if self.nb else np.zeros((0, n)))
         self._choose_solver()
+        self.fallbacks = 0  # frequencies re-solved with pivoting (batched banded path)
         self._last = None
 
     # ----------------------------------------------------------- linear solves
@@ -190,11 +130,13 @@ class SparseFRF:
         inv[perm] = np.arange(n)
         pr, pc = inv[pat.rows], inv[pat.cols]
         bw = int(np.max(np.abs(pr - pc))) if pat.P.nnz else 0
-        self.banded = self.m == 0 and bw <= BAND_MAX
+        self.banded = self.m == 0 and bw <= BAND_MAX and pat.symmetric
         self.bandwidth = bw
         if self.banded:
-            self.perm, self.bw = perm, bw
-            self.band_index = (bw + pr - pc) * n + pc  # flat index into the (2 bw + 1, n) storage
+            # symmetric: the lower band (p = row - col >= 0) of the RCM-ordered Z is enough
+            self.perm, self.inv, self.bw = perm, inv, bw
+            self.band_entries = np.nonzero(pr >= pc)[0]
+            self.band_index = (pr - pc)[self.band_entries] * n + pc[self.band_entries]
             return
         self.perm = None
         if m == 0:
@@ -209,7 +151,8 @@ class SparseFRF:
         self._csc_indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n + m))])
 
     def _factor_solve(self, zvals, w, US, rhs):
-        """Solve Z_k X_k = rhs at every frequency: zvals (nnz, N); returns (n, n_rhs, N)."""
+        """Solve Z_k X_k = rhs at every frequency: zvals (nnz, N), rhs (n, n_rhs);
+        returns X (n_rhs, n, N)."""
         n, N = self.n, w.size
         m = self.m
         if self.batched:
@@ -222,16 +165,20 @@ class SparseFRF:
             Z[:, self._dense_rows, self._dense_cols] = np.concatenate(blocks, axis=1)
             rhs_b = np.vstack([rhs, np.zeros((m, rhs.shape[1]))])
             X = np.linalg.solve(Z, np.broadcast_to(rhs_b, (N, *rhs_b.shape)))
-            return X[:, :n, :].transpose(1, 2, 0)
-        X = np.empty((n, rhs.shape[1], N), complex)
+            return np.ascontiguousarray(X[:, :n, :].transpose(2, 1, 0))
         if self.banded:
-            rp = rhs[self.perm]
-            for k in range(N):
-                ab = np.zeros((2 * self.bw + 1) * n, complex)
-                ab[self.band_index] = zvals[:, k]
-                X[self.perm, :, k] = sla.solve_banded((self.bw, self.bw), ab.reshape(-1, n), rp,
-                                                      check_finite=False)
+            zb, rp = zvals[self.band_entries], rhs[self.perm]
+            Xp, bad = solve_banded_batch(lower_band(zb, self.band_index, self.bw, n), rp)
+            if bad.size:  # growth check failed: LAPACK with pivoting at those frequencies
+                Lb = lower_band(zb[:, bad], self.band_index, self.bw, n)
+                for i, k in enumerate(bad):
+                    Xp[:, :, k] = solve_pivoted(Lb[:, :, i], rp)
+                self.fallbacks += bad.size
+            X = np.empty((rhs.shape[1], n, N), complex)
+            for r in range(X.shape[0]):  # rows of N contiguous values: a fast gather
+                X[r] = Xp[self.inv, r]
             return X
+        X = np.empty((rhs.shape[1], n, N), complex)
         size = n + m
         if self.perm is not None:  # RCM-ordered pattern, factorised without pivoting
             rp = rhs[self.perm]
@@ -239,8 +186,8 @@ class SparseFRF:
             for k in range(N):
                 A = sp.csc_matrix((zvals[self._csc_order, k], self._csc_rows, self._csc_indptr),
                                   shape=(size, size))
-                X[self.perm, :, k] = spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                                               options=opts).solve(rp)
+                X[:, self.perm, k] = spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                                               options=opts).solve(rp).T
             return X
         rhs_b = np.vstack([rhs, np.zeros((m, rhs.shape[1]))])
         minus_i = -np.ones(m)
@@ -249,88 +196,142 @@ class SparseFRF:
             data = np.concatenate([zvals[:, k], (1j * w[k] * US).ravel() if m else [],
                                    Ut, minus_i])[self._csc_order]
             A = sp.csc_matrix((data, self._csc_rows, self._csc_indptr), shape=(size, size))
-            X[:, :, k] = spla.splu(A, permc_spec="MMD_AT_PLUS_A").solve(rhs_b)[:n]
+            X[:, :, k] = spla.splu(A, permc_spec="MMD_AT_PLUS_A").solve(rhs_b)[:n].T
         return X
 
-    # --------------------------------------------------------------- evaluate
-    def _theta(self, z):
-        return self.T @ z + self.c
+    def _chunks(self, N, n_res):
+        """Slices of the frequency axis whose working arrays fit in ``CHUNK_BYTES``."""
+        n, nz, size = self.n, self.params.n_z, self.n + self.m
+        n_rhs = 1 + len(self.power)
+        per = 3 * n_rhs * size + 2 * (getattr(self, "bw", 0) + 1) * n + 3 * nz * n_res
+        per += size * size if self.batched else 0
+        step = max(CHUNK_MIN, CHUNK_BYTES // (16 * per))
+        return [slice(k, min(k + step, N)) for k in range(0, N, step)]
 
-    def frf(self, z, w, jacobian=False):
-        """Channel FRFs (n_ch, N) at circular frequencies w; with ``jacobian`` also dH/dz."""
-        sys = self.sys
-        theta = self._theta(np.asarray(z, float).ravel())
+    # --------------------------------------------------------------- evaluate
+    def _state(self, z):
+        """The scalars of Eqns 23-24 and of the damping structure at z (one namespace)."""
+        theta = self.T @ np.asarray(z, float).ravel() + self.c
         alpha, beta, td = theta[self.sa], theta[self.sb], theta[self.sd]
         d_out, d_jac = self._damp(td)
         d_out, d_jac = np.asarray(d_out).ravel(), np.asarray(d_jac)
-        cM, cK = d_out[0], d_out[1]
         m = self.m
         S = d_out[2:2 + m * m].reshape(m, m, order="F") if m else None
         g = d_out[2 + m * m:]
-        vK = self.K0v + self.VK @ alpha
-        vM = self.M0v + self.VM @ beta
-        vD = self.VD @ g if self.nD else 0.0
+        return SimpleNamespace(
+            cM=d_out[0], cK=d_out[1], S=S, d_jac=d_jac, US=self.sys.U @ S if m else None,
+            vK=self.K0v + self.VK @ alpha, vM=self.M0v + self.VM @ beta,
+            vD=self.VD @ g if self.nD else None,
+            b=self.sys.b0 + (self.B_infl.T @ beta if self.nb else 0.0))
+
+    def _solve(self, st, w, jacobian):
+        """q (n, N) and, with ``jacobian``, the adjoints Lam (n_ch, n, N) at frequencies w."""
         jw = 1j * w
-        zvals = (vK[:, None] * (1 + jw * cK) + vM[:, None] * (-(w ** 2) + jw * cM)
-                 + jw * (vD[:, None] if self.nD else 0.0))
-        b = sys.b0 + (self.B_infl.T @ beta if self.nb else 0.0)
-        rhs = np.column_stack([b, sys.E]) if jacobian else b[:, None]
-        X = self._factor_solve(zvals, w, sys.U @ S if m else None, rhs.astype(complex))
-        q = X[:, 0, :]
-        Hq = sys.E.T @ q
-        fac = (jw[None, :]) ** self.power[:, None]
-        H = fac * Hq + self.absolute[:, None]
-        if not jacobian:
-            return H
-        Lam = X[:, 1:, :]
-        dHz = np.zeros((self.params.n_z, Hq.shape[0], w.size), complex)
-        dHz[self.z_a] = -(1 + jw * cK) * self.bil_K(q, Lam)
-        if self.z_b.size:
-            dHz[self.z_b] += (-(-(w ** 2) + jw * cM) * self.bil_M(q, Lam)
-                              + np.einsum("rn,nck->rck", self.B_z, Lam))
-        if self.free_d.size:
-            P = self.pat.P
-            M = sp.csc_matrix((vM, P.indices, P.indptr), shape=P.shape)
-            K = sp.csc_matrix((vK, P.indices, P.indptr), shape=P.shape)
-            PM = np.einsum("nck,nk->ck", Lam, M @ q)
-            PK = np.einsum("nck,nk->ck", Lam, K @ q)
-            dB = d_jac[0][:, None, None] * PM + d_jac[1][:, None, None] * PK
-            if m:
-                Ul, Uq = np.einsum("na,nck->ack", sys.U, Lam), sys.U.T @ q
-                # vec(S) is column-major: entry (a, b) at a + m b
-                O = np.einsum("ack,bk->back", Ul, Uq).reshape(m * m, *Ul.shape[1:])
-                dB = dB + np.einsum("sj,sck->jck", d_jac[2:2 + m * m], O)
-            if self.nD:
-                dB = dB + np.einsum("lj,lck->jck", d_jac[2 + m * m:], self.bil_D(q, Lam))
-            dD = -jw * dB[self.free_d]
-            # a complex array viewed as interleaved floats: one contiguous real BLAS product
-            flat = np.ascontiguousarray(dD.reshape(dD.shape[0], -1)).view(float)
-            dHz += np.ascontiguousarray(self.Td_free @ flat).view(complex).reshape(dHz.shape)
-        dHz *= fac[None]
-        return H, dHz
+        zvals = (st.vK[:, None] * (1 + jw * st.cK) + st.vM[:, None] * (-(w ** 2) + jw * st.cM))
+        if self.nD:
+            zvals += jw * st.vD[:, None]
+        rhs = np.column_stack([st.b, self.sys.E]) if jacobian else st.b[:, None]
+        X = self._factor_solve(zvals, w, st.US, rhs.astype(complex))
+        return X[0], X[1:]
+
+    def _damping_terms(self, st, q, Lam):
+        """d(lambda_c^T Z q)/d theta_d / (j w) for the free damping parameters, (free, n_ch, N)."""
+        P = self.pat.P
+        M = sp.csc_matrix((st.vM, P.indices, P.indptr), shape=P.shape)
+        K = sp.csc_matrix((st.vK, P.indices, P.indptr), shape=P.shape)
+        PM = (Lam * real_times_complex(M, q)[None]).sum(axis=1)
+        PK = (Lam * real_times_complex(K, q)[None]).sum(axis=1)
+        dj, m = st.d_jac, self.m
+        dB = dj[0][:, None, None] * PM + dj[1][:, None, None] * PK
+        if m:
+            U = self.sys.U
+            Ul = np.stack([U.T @ L for L in Lam], axis=1)   # (m, n_ch, N)
+            Uq = U.T @ q
+            # vec(S) is column-major: entry (a, b) at a + m b
+            O = (Ul[None] * Uq[:, None, None, :]).reshape(m * m, *Ul.shape[1:])
+            dB = dB + np.tensordot(dj[2:2 + m * m].T, O, axes=1)
+        if self.nD:
+            dB = dB + np.tensordot(dj[2 + m * m:].T, self.bil_D(q, Lam), axes=1)
+        return dB[self.free_d]
+
+    def _dHq(self, st, w, q, Lam):
+        """d(E^T q)/dz, (n_z, n_ch, N): Eqns 23-24 as bilinear forms lambda_c^T (db - dZ q)."""
+        n_ch = Lam.shape[0]
+        D = np.zeros((self.params.n_z, 2 * n_ch, w.size))
+        fac = np.ones((2 * n_ch, w.size), complex)
+        fac[1::2] = -1j                               # Re(-j x) = Im(x)
+        self._jacobian_into(D, st, w, q, Lam, fac, np.repeat(np.arange(n_ch), 2))
+        return D[:, 0::2] + 1j * D[:, 1::2]
+
+    def _jacobian_into(self, D, st, w, q, Lam, G, ch):
+        """D[z, i, k] += Re(G[i, k] d(E^T q)_{ch[i]}/dz_z) at frequencies w: D (n_z, n_res, N).
+
+        Real arithmetic where it can: the weight G folds into the adjoint (Lg), the group
+        coefficients into A q, and each bilinear form's real part is taken before its sum.
+        """
+        jw = 1j * w
+        AK = self.bil_K.products(q) * (-(1 + jw * st.cK)) if self.z_a.size else None
+        AM = self.bil_M.products(q) * (w ** 2 - jw * st.cM) if self.z_b.size else None
+        dD = self._damping_terms(st, q, Lam) * (-jw) if self.z_d.size else None
+        at_a, at_b, at_d = self.at
+        for i, c in enumerate(ch):
+            out, Lg = D[:, i], Lam[c] * G[i]
+            if AK is not None:
+                out[at_a] += self.bil_K.real_form(AK, Lg)
+            if AM is not None:
+                out[at_b] += self.bil_M.real_form(AM, Lg) + self.B_z @ Lg.real
+            if dD is not None:
+                out[at_d] += self.Td_free @ (dD[:, c] * G[i]).real
+
+    def _channels(self, st, w, jacobian):
+        """(H (n_ch, N), fac (n_ch, N), q, Lam): H = fac E^T q + absolute (Lam None
+        without ``jacobian``)."""
+        q, Lam = self._solve(st, w, jacobian)
+        fac = (1j * w[None, :]) ** self.power[:, None]
+        H = fac * (self.sys.E.T @ q) + self.absolute[:, None]
+        return H, fac, q, Lam
+
+    def frf(self, z, w, jacobian=False):
+        """Channel FRFs (n_ch, N) at circular frequencies w; with ``jacobian`` also dH/dz."""
+        st, w = self._state(z), np.asarray(w, float)
+        H, fac, q, Lam = self._channels(st, w, jacobian)
+        return (H, self._dHq(st, w, q, Lam) * fac[None]) if jacobian else H
+
+    def _rows(self, H, fac, Y, s, wt):
+        """Residual rows R (n_res, N) of Eqn 25a and G with dR/dz = Re(G d(E^T q)/dz)."""
+        if self.residual == "log_magnitude":
+            return wt * (np.log(np.abs(H)) - np.log(np.abs(Y))), wt * fac / H
+        if self.residual == "magnitude":
+            aH = np.abs(H)
+            return wt * (aH - np.abs(Y)) / s, wt * fac * np.conj(H) / (aH * s)
+        E = (H - Y) / s
+        R = np.stack([wt * E.real, wt * E.imag], axis=1).reshape(-1, E.shape[1])
+        G = np.stack([wt * fac / s, -1j * wt * fac / s], axis=1).reshape(-1, E.shape[1])
+        return R, G  # Im(x) = Re(-j x)
 
     def residuals(self, z, data, jacobian=True):
-        """(r, J) ordered like the dense backend: frequency-major, channel-minor."""
+        """(r, J) ordered like the dense backend: frequency-major, residual-minor.
+
+        Computed over chunks of frequencies (``CHUNK_BYTES``), written straight into J,
+        which is stored column-major (each parameter's column contiguous, as J^T J wants).
+        """
         w, yr, yi, s, wt = data
-        Y = yr + 1j * yi
-        out = self.frf(z, w, jacobian)
-        H, dH = out if jacobian else (out, None)
-        if self.residual == "log_magnitude":
-            R = wt * (np.log(np.abs(H)) - np.log(np.abs(Y)))
-            D = wt * (dH / H).real if jacobian else None
-        elif self.residual == "magnitude":
-            R = wt * (np.abs(H) - np.abs(Y)) / s
-            D = wt * (np.conj(H) * dH).real / (np.abs(H) * s) if jacobian else None
-        else:
-            E = (H - Y) / s
-            R = np.stack([wt * E.real, wt * E.imag], axis=1).reshape(-1, E.shape[1])
-            D = (np.stack([wt * (dH / s).real, wt * (dH / s).imag], axis=2)
-                 .reshape(dH.shape[0], -1, dH.shape[2]) if jacobian else None)
-        r = R.ravel(order="F")
-        if not jacobian:
-            return r, None
-        J = D.transpose(0, 2, 1).reshape(D.shape[0], -1).T  # rows: k-major, channel-minor
-        return r, J
+        n_ch, N, nz = len(self.power), w.size, self.params.n_z
+        n_res = n_ch * (2 if self.residual == "complex" else 1)
+        ch = np.arange(n_res) // (n_res // n_ch)
+        st = self._state(z)
+        r = np.empty(N * n_res)
+        Jt = np.empty((nz, N, n_res)) if jacobian else None
+        for sl in self._chunks(N, n_res):
+            H, fac, q, Lam = self._channels(st, w[sl], jacobian)
+            R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
+            G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
+            r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
+            if jacobian:  # a contiguous block for the sums, one transposing copy into J
+                D = np.zeros((nz, n_res, sl.stop - sl.start))
+                self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
+                Jt[:, sl] = D.transpose(0, 2, 1)
+        return r, (Jt.reshape(nz, -1).T if jacobian else None)
 
     def cached(self, z, data_key, data):
         """(r, J) at z, reused while IPOPT asks for f, grad and Hessian at the same point."""
