@@ -5,7 +5,7 @@ measured data (:mod:`nlp.case.records`), the frequency selection
 (:mod:`nlp.case.selection`), damping and parameters (:mod:`nlp.case.parameters`).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -28,7 +28,8 @@ from nlp.model.nominal import StructuralModel
 from nlp.model.parameters import ParameterSet
 from nlp.output.progress import stage
 from nlp.solve.identify import SCALE_EXPLANATION, scale_null_space
-from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem, prefit_residual
+from nlp.solve.problem import (PREFIT_MAX_ITER, Channel, SolverConfig, Target, UpdatingProblem,
+                               prefit_residual)
 
 __all__ = ["Case", "assemble", "build_problem", "reduced_error"]
 
@@ -155,7 +156,7 @@ def build_problem(case, centre=None):
         with stage("build NLP") as bar:
             backend = choose_backend(cfg.model.frf_backend, case.model.n)
             basis, info = _reduced_basis(case, centre) if backend == "reduced" else (None, None)
-            def on(residual):
+            def on(residual, solver=solver):
                 return UpdatingProblem(case.model, case.damping, case.params, case.target,
                                        residual=residual, solver=solver,
                                        total_mass=cfg.parameters.total_mass, frf_backend=backend,
@@ -163,9 +164,12 @@ def build_problem(case, centre=None):
 
             problem = on(cfg.objective.residual)
             problem.reduced_info = info
-            pre = prefit_residual(cfg.objective.prefit, cfg.objective.residual, problem.backend)
+            pre = prefit_residual(cfg.objective.prefit, cfg.objective.residual, problem.backend,
+                                  case.has_phase)
             if pre is not None:
-                problem.prefit = on(pre)
+                key = "ipopt.max_iter" if solver.name == "ipopt" else "max_iter"
+                problem.prefit = on(pre, replace(solver, options={**solver.options,
+                                                                  key: PREFIT_MAX_ITER}))
                 problem.prefit.polish_unconverged = False  # only a start for the case's residual
             bar.update()
     except RuntimeError as exc:

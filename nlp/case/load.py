@@ -59,7 +59,7 @@ def load_case(path, overrides=None):
         raise rd.err("objective.residual", f"magnitude or log_magnitude (data.format "
                      f"{cfg.data.format} has no phase)", "complex")
     if not cfg.data.has_phase and cfg.objective.prefit == "complex":
-        raise rd.err("objective.prefit", f"auto, none or magnitude (data.format "
+        raise rd.err("objective.prefit", f"auto, none, magnitude or relative_magnitude (data.format "
                      f"{cfg.data.format} has no phase)", "complex")
     cfg = _updates_and_verification(rd, raw, cfg)
     return apply_overrides(cfg, overrides or {}, rd)

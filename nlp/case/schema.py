@@ -163,8 +163,8 @@ class FrequencyConfig:
 
 @dataclass(frozen=True)
 class ObjectiveConfig:
-    residual: str = "log_magnitude"        # log_magnitude | magnitude | complex (needs phase)
-    prefit: str = "auto"                   # auto | none | magnitude | complex: a first solve of every start on this residual (nlp.solve.problem); auto: magnitude for log_magnitude fits on the sparse or reduced backend
+    residual: str = "log_magnitude"        # log_magnitude | magnitude | relative_magnitude | complex (needs phase)
+    prefit: str = "auto"                   # auto | none | magnitude | relative_magnitude | complex: a first solve of every start on this residual (nlp.solve.problem.prefit_residual); auto: complex (relative_magnitude without phase) for log_magnitude fits on the sparse or reduced backend
 
 
 @dataclass(frozen=True)

@@ -32,12 +32,12 @@ __all__ = ["AT_BOUND", "MISFIT_RATIO", "bound_flag", "iteration_flag", "single_s
            "misfit_flag", "replay_flags"]
 
 AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, that counts as "on"
-# RMS of ln|H_a / H_x| over the noise's RMS above which the fit is flagged. At the truth
-# the ratio is 1 within sqrt(1 / (2 N)) (chi-square sampling, N >= 100 points: 0.07);
-# the noise estimated from the FRF's own scatter is itself uncertain by tens of percent
-# (docs/method/noise.md). A ratio of 3 (a reduced chi-square of 9) is model error or a
-# wrong minimum by any of these margins.
-MISFIT_RATIO = 3.0
+# RMS of ln|H_a / H_x| over the noise's RMS above which the fit is flagged (a reduced
+# chi-square of 2.25). At the truth the ratio is 1 within sqrt(1 / (2 N)) (chi-square
+# sampling: 0.07 at N = 100 points); the noise estimated from the FRF's own scatter
+# (nlp.frf.noise) came out 1.00x the true noise on the four-storey case and 1.05-1.25x on
+# the tall frames of scripts/bench_scale.py, so a fit at its noise floor stays below 1.3.
+MISFIT_RATIO = 1.5
 
 
 def bound_flag(name, value, lower, upper, unit, se_key):

@@ -165,7 +165,8 @@ def _search_section(cfg, search):
             # success: converged (only those compete); f is null for a failed solve
             "starts": [{"index": i, "f": r.f if np.isfinite(r.f) else None,
                         "success": r.success, "status": r.status,
-                        "iterations": r.iterations, "seconds": r.seconds}
+                        "iterations": r.iterations, "prefit_iterations": r.prefit_iterations,
+                        "seconds": r.seconds}
                        for i, r in zip(search.indices, search.results)]}
 
 

@@ -67,12 +67,12 @@ def total_mass_constraint(model, params, x, total_mass):
     return s0 + ca.dot(sr, theta[sb]) - total_mass if sr.numel() else ca.MX(s0 - total_mass)
 
 
-def _callbacks(rj, n_z, n_p, n_r, ng, ipopt):
-    """grad_f, objective, hess_lag and residuals as callbacks around rj(x, p) -> (r, J)."""
+def _callbacks(rj, n_z, n_p, ng, ipopt, r_only=None):
+    """grad_f, objective and hess_lag as callbacks around rj(x, p) -> (r, J) and
+    r_only(x, p) -> r (default: r of rj)."""
     def f_only(x, p):
-        # with J too: IPOPT asks for the gradient at the point it accepts, and the
-        # adjoint solves cost little next to the factorisations
-        r, _ = rj(x, p)
+        # r alone: IPOPT's line search tries several points per accepted one
+        r = rj(x, p)[0] if r_only is None else r_only(x, p)
         return 0.5 * float(r @ r)
 
     def grad(x, p):
@@ -95,8 +95,6 @@ def _callbacks(rj, n_z, n_p, n_r, ng, ipopt):
                        [dense(1, 1)], gradient=grad_cb),
         PythonCallback("hess_lag", lambda a: [hess(*a)],
                        [dense(n_z, 1), dense(n_p, 1), dense(1, 1), dense(ng, 1)], [hsp]),
-        PythonCallback("residuals", lambda a: list(rj(*a)), [dense(n_z, 1), dense(n_p, 1)],
-                       [dense(n_r, 1), dense(n_r, n_z)]),
     ]
 
 
@@ -115,10 +113,10 @@ def _ipopt_numeric_options(opts, solver_config, named):
             opts[key] = value
 
 
-def build_callback_nlp(rj, model, params, n_p, n_r, total_mass, solver_config):
+def build_callback_nlp(rj, model, params, n_p, total_mass, solver_config, r_only=None):
     """The numeric backends' NLP (:class:`nlp.solve.compiled.BuiltNLP`).
 
-    rj : (x, p) -> (r, J) numeric; n_p : size of the data vector p; n_r : residuals.
+    rj : (x, p) -> (r, J) numeric; n_p : size of the data vector p; r_only : (x, p) -> r.
     """
     nz = params.n_z
     ipopt = solver_config.name == "ipopt"
@@ -126,7 +124,7 @@ def build_callback_nlp(rj, model, params, n_p, n_r, total_mass, solver_config):
     p = ca.MX.sym("p", n_p)
     g = total_mass_constraint(model, params, x, total_mass)
     ng = g.shape[0]
-    callbacks = _callbacks(rj, nz, n_p, n_r, ng, ipopt)
+    callbacks = _callbacks(rj, nz, n_p, ng, ipopt, r_only)
     named = {cb.name(): cb for cb in callbacks}
     opts = solver_config.nlpsol_options()
     if ipopt:
@@ -143,5 +141,8 @@ def build_callback_nlp(rj, model, params, n_p, n_r, total_mass, solver_config):
     solver = ca.nlpsol("updater", solver_config.name,
                        {"x": x, "p": p, "f": obj_fn(x, p), "g": g}, opts)
     # screen_def None: already stops at 1e-5 (above)
-    return BuiltNLP(obj_fn=obj_fn, resjac_fn=named["residuals"], solver=solver, ng=ng,
+    # r and J straight from Python: a CasADi callback would copy J into a DM whose dense
+    # sparsity alone holds n_r x n_z row indices (2.7 GB at 164k residuals x 2,049
+    # parameters) and cost 6x the evaluation itself at n = 64 (measured)
+    return BuiltNLP(obj_fn=obj_fn, resjac_fn=rj, solver=solver, ng=ng,
                     callbacks=callbacks)

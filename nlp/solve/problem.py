@@ -41,32 +41,49 @@ from nlp.solve.polish import MAX_PARAMETERS, newton_polish
 from nlp.solve.residuals import RESIDUALS, data_arrays, frequency_functions, pack_data
 from nlp.solve.stopping import STATIONARY, gauss_newton_decrement
 
-__all__ = ["SOLVERS", "PREFITS", "prefit_residual", "Channel", "Target", "SolverConfig", "LocalResult",
+__all__ = ["SOLVERS", "PREFITS", "PREFIT_MAX_ITER", "prefit_residual", "Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
 
 SOLVERS = ("ipopt", "sqpmethod")
-PREFITS = ("auto", "none", "magnitude", "complex")
+PREFITS = ("auto", "none", "magnitude", "relative_magnitude", "complex")
 
 
-def prefit_residual(requested, residual, backend):
+# Iterations of a prefit. Prefits from starts that reach the noise floor took 12-17 IPOPT
+# iterations on tall frames of 16 to 64 storeys (python scripts/bench_scale.py); a start
+# from a far corner of a 129-parameter box was still moving after 500 iterations and
+# then spent 500 more on ln|H| to end 10,000x above the floor. Stopping at 6x the
+# converging count costs no start that converges.
+PREFIT_MAX_ITER = 100
+PREFIT_FAR = ("Maximum_Iterations_Exceeded", "Max_Iter_Exceeded")
+
+
+def prefit_residual(requested, residual, backend, has_phase=True):
     """The residual of the first solve of every start, or None (no prefit).
 
     ln|H| has a logarithmic singularity at every anti-resonance, and an anti-resonance
     of the model a little off the data's makes a spike of the residual that moves with
     the parameters: with many modes in the band (tall frames, FE models) the
-    log-magnitude objective has many local minima, while |H| (dominated by the
-    resonances, smooth through the zeros) does not. Measured (scripts/bench_scale.py):
-    a 16-storey frame with per-storey parameters, 4 starts, log-magnitude alone ends
-    at f = 18.6 against 0.016 at the noise floor; a magnitude prefit from the same
-    starts reaches 0.016. ``auto`` prefits log-magnitude fits on the numeric backends
-    (more DOFs than the dense backend takes, :data:`nlp.frf.backends.DENSE_MAX`):
-    small models keep the single solve (four storeys: no local minimum from z0).
+    log-magnitude objective has many local minima. The complex residual (H_a - H_x) /
+    |H_x| is smooth in the parameters and weighs every mode alike; without phase,
+    relative_magnitude (|H_a| - |H_x|) / |H_x| is its magnitude-only analogue (the
+    channel-RMS ``magnitude`` form sees only the largest peaks: on a 64-storey frame it
+    left the upper storeys free, and the log fit from there ended at 56 % errors).
+    Measured on tall frames with per-storey parameters, one start from the nominal
+    model (python scripts/bench_scale.py; docs/method/updating.md): log-magnitude
+    alone ends at 1,200 (n = 16) times its noise floor; a complex prefit reaches the
+    floor at n = 16, 32 and 64; a relative_magnitude prefit reaches 3.1 times it at n = 64.
+    ``auto`` prefits log-magnitude fits on the numeric backends (more DOFs than the dense
+    backend takes, :data:`nlp.frf.backends.DENSE_MAX`); small models keep the single
+    solve (their few modes leave no local minimum near z0 on the shipped cases).
     """
     if requested not in PREFITS:
         raise ValueError(f"prefit must be one of {PREFITS}, got {requested!r}")
     if requested == "auto":
-        return "magnitude" if residual == "log_magnitude" and backend != "dense" else None
+        if residual != "log_magnitude" or backend == "dense":
+            return None
+        return "complex" if has_phase else "relative_magnitude"
     return None if requested == "none" or requested == residual else requested
+
 
 _DEFAULT_OPTIONS = {
     "ipopt": {"ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-8,
@@ -164,7 +181,7 @@ class UpdatingProblem:
     damping : a damping model from :mod:`nlp.model.damping`
     params : nlp.model.parameters.ParameterSet
     target : Target
-    residual : {"log_magnitude", "magnitude", "complex"}
+    residual : {"log_magnitude", "magnitude", "relative_magnitude", "complex"}
     solver : SolverConfig
     total_mass : float, optional
         Anchor 1^T M 1 = total_mass [kg] (an equality constraint).
@@ -231,9 +248,11 @@ class UpdatingProblem:
         def rj(x, p):
             return ev.cached(x, p.tobytes(), self._data(p))
 
-        return build_callback_nlp(rj, self.model, self.params, self._p.size,
-                                  self.n_res * self.target.omega.size, self.total_mass,
-                                  self.solver_config)
+        def r_only(x, p):
+            return ev.cached_value(x, p.tobytes(), self._data(p))
+
+        return build_callback_nlp(rj, self.model, self.params, self._p.size, self.total_mass,
+                                  self.solver_config, r_only)
 
     def _data(self, p):
         """(w, yr, yi, s, wt) arrays from the packed data vector."""
@@ -361,6 +380,13 @@ class UpdatingProblem:
         z0c = np.clip(z0, lo, hi)
         t0 = time.perf_counter()
         pre = self._prefit(z0c, bounds) if prefit else None
+        if pre is not None and pre.status in PREFIT_FAR:
+            # a prefit still moving after PREFIT_MAX_ITER iterations started in a far basin:
+            # the start ends here, not after the case's whole iteration budget on ln|H|
+            return LocalResult(z=pre.z, f=self.objective(pre.z), success=False,
+                               status=f"prefit ({self.prefit.residual}): {pre.status}",
+                               iterations=0, seconds=time.perf_counter() - t0, z0=z0c,
+                               prefit_iterations=pre.iterations)
         z_start = z0c if pre is None else pre.z
         g0 = np.zeros(self.ng)
         solver = self._solver

@@ -4,6 +4,8 @@ Per channel c at the frequency w, with the measured H_x = yr + j yi, scale s and
 
     log_magnitude   r = wt (ln|H_a| - ln|H_x|)
     magnitude       r = wt (|H_a| - |H_x|) / s,      s = rms_c |H_x|
+    relative_magnitude  the same with s = |H_x|: ln|H_a / H_x| to first order, without
+                    its singularity where the model's |H_a| passes through zero
     complex         r = wt [Re, Im] (H_a - H_x) / s,  s = |H_x|
 
 H_a is the model's FRF of Eqns 2-5 (:func:`nlp.frf.backends.dense.frf_symbolic`) for
@@ -25,7 +27,7 @@ __all__ = ["RESIDUALS", "FrequencyFunctions", "pack_data", "data_arrays", "data_
 
 # The residual forms of the objective (Eqn 25): ln|H| (the default, far better conditioned
 # than the paper's squared magnitudes), |H|, or the complex FRF
-RESIDUALS = ("log_magnitude", "magnitude", "complex")
+RESIDUALS = ("log_magnitude", "magnitude", "relative_magnitude", "complex")
 
 
 @dataclass(frozen=True)
@@ -54,7 +56,7 @@ def pack_data(target, residual):
         rms = np.array([np.sqrt(np.mean(mag[c, used[c]] ** 2)) if used[c].any() else 1.0
                         for c in range(H.shape[0])])
         s = np.repeat(rms[:, None], H.shape[1], axis=1)
-    elif residual == "complex":
+    elif residual in ("complex", "relative_magnitude"):
         s = mag
     else:
         s = np.ones_like(mag)
@@ -161,7 +163,7 @@ def _residual_terms(residual, n_ch, out_r, out_i, yr, yi, s, wt):
         hr, hi = out_r[c], out_i[c]
         if residual == "log_magnitude":
             res.append(wt[c] * 0.5 * (ca.log(hr**2 + hi**2) - ca.log(yr[c]**2 + yi[c]**2)))
-        elif residual == "magnitude":
+        elif residual in ("magnitude", "relative_magnitude"):
             res.append(wt[c] * (ca.sqrt(hr**2 + hi**2) - ca.sqrt(yr[c]**2 + yi[c]**2)) / s[c])
         else:
             res += [wt[c] * (hr - yr[c]) / s[c], wt[c] * (hi - yi[c]) / s[c]]

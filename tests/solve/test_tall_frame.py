@@ -34,7 +34,7 @@ def test_prefit_reaches_the_noise_floor_and_the_truth(tmp_path):
     path, fr = _write(tmp_path, 16)
     case = assemble(load_case(path))
     problem = build_problem(case)
-    assert problem.prefit is not None and problem.prefit.residual == "magnitude"
+    assert problem.prefit is not None and problem.prefit.residual == "complex"
     res = problem.solve()
     # ln|H (1 + noise e)| = ln|H| + noise Re(e) to first order: variance noise^2 / 2 per point
     f_floor = 0.5 * problem.n_used * NOISE ** 2 / 2
