@@ -11,7 +11,8 @@ Printed per model:
   build      seconds to assemble the case and build the NLP (compile included; a cold cache)
   eval       median seconds of one residual-plus-Jacobian evaluation at z0 (3 calls), and
              its ratio to the flop-and-memory bound of docs/method/backends.md
-             ("Cost of one evaluation"), with this machine's measured rates
+             ("Cost of one evaluation", nlp.frf.backends.cost; banded systems only), with
+             this machine's measured rates
   iters      IPOPT iterations of the best start (prefit + main)
   solve      median seconds of a local solve
   run        whole run (all starts, polishing, reporting)
@@ -37,42 +38,9 @@ import yaml
 import nlp
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
+from nlp.frf.backends.cost import evaluation_cost, machine_rates
 from nlp.solve.executors.threads import limit_blas_threads
 from nlp.testing.tall import case_dict, tall_frame
-
-
-def machine_rates():
-    """(flop/s of a one-thread real matrix product, bytes/s of a large array copy)."""
-    A = np.random.default_rng(0).standard_normal((600, 600))
-    A @ A
-    t = time.perf_counter()
-    for _ in range(5):
-        A @ A
-    flops = 5 * 2 * 600 ** 3 / (time.perf_counter() - t)
-    x = np.ones(2 ** 25)
-    y = np.empty_like(x)
-    t = time.perf_counter()
-    for _ in range(5):
-        np.copyto(y, x)
-    bandwidth = 5 * 2 * x.nbytes / (time.perf_counter() - t)
-    return flops, bandwidth
-
-
-def evaluation_bound(ev, N):
-    """(real flops, bytes) of one residual-plus-Jacobian evaluation of a SparseFRF ``ev``
-    at N frequencies: docs/method/backends.md, "Cost of one evaluation"."""
-    n, m, b = ev.n, ev.m, ev.bandwidth
-    n_ch, n_z = ev.sys.E.shape[1], ev.params.n_z
-    nnz = ev.pat.P.nnz
-    rhs = 1 + n_ch
-    if ev.batched:                                   # dense LU and solves of size n + m
-        solve = 8 * ((n + m) ** 3 / 3 + 2 * rhs * (n + m) ** 2)
-    else:                                            # banded LU and solves
-        solve = 8 * (n * b * b + 4 * rhs * n * b)
-    sens = 8 * n_z * n_ch * max(nnz // max(n, 1), 4)  # a bilinear form per parameter and channel
-    flops = N * (solve + 8 * nnz + sens + 10 * n_z * n_ch)
-    bytes_ = N * (16 * rhs * n + 16 * n_z * n_ch + 8 * n_z * n_ch)  # X, dH, J
-    return flops, bytes_
 
 
 def write_frame(n, folder, frequencies):
@@ -108,10 +76,10 @@ def build_and_eval(path, rates):
         t0 = time.perf_counter()
         problem.residuals(problem.z0)
         times.append(time.perf_counter() - t0)
-    flops, bytes_ = evaluation_bound(problem.evaluator, case.target.omega.size)
     row["eval"] = float(np.median(times))
-    row["ratio"] = row["eval"] / (flops / rates[0] + bytes_ / rates[1])
-    row["mflop"] = flops / 1e6
+    if problem.evaluator.banded:  # the bound is written for the banded path
+        cost = evaluation_cost(problem.evaluator, case.target.omega.size, problem.n_res)
+        row["ratio"] = row["eval"] / (cost["flops"] / rates[0] + cost["bytes"] / rates[1])
     return case, row
 
 

@@ -48,11 +48,12 @@ SOLVERS = ("ipopt", "sqpmethod")
 PREFITS = ("auto", "none", "magnitude", "relative_magnitude", "complex")
 
 
-# Iterations of a prefit. Prefits from starts that reach the noise floor took 12-17 IPOPT
+# Iterations of a prefit. Prefits from starts that reach the noise floor took 7-21 IPOPT
 # iterations on tall frames of 16 to 64 storeys (python scripts/bench_scale.py); a start
 # from a far corner of a 129-parameter box was still moving after 500 iterations and
-# then spent 500 more on ln|H| to end 10,000x above the floor. Stopping at 6x the
-# converging count costs no start that converges.
+# then spent 500 more on ln|H| to end 10,000x above the floor. At 5x the converging count
+# the cap also ended one slow start at n = 64 near the floor (f 0.065 against 0.047) while
+# two others reached it: the cap trades such starts for the time of far ones.
 PREFIT_MAX_ITER = 100
 PREFIT_FAR = ("Maximum_Iterations_Exceeded", "Max_Iter_Exceeded")
 
