@@ -148,15 +148,16 @@ def table(rows):
             continue
         new, hit, in_control = score(r, ctl)
         changed += {key(f) for f in r["findings"]} != {key(f) for f in ctl["findings"]}
-        mark = "hit" if hit else ("in ctl" if in_control else "miss")
+        here = [f for f in r["findings"] if key(f) == key(t)]
+        mark = "hit" if hit else ("in ctl" if in_control and here else "miss")
 
         tot[t["family"]][0] += hit
         tot[t["family"]][1] += 1
         tot[t["family"]][2] += in_control
         named = ", ".join(label(f) for f in new) or "-"
-        if in_control:     # the planted effect's own finding, with its value here
-            named += "; in control too: " + ", ".join(label(f) for f in r["findings"]
-                                                      if key(f) == key(t))
+        if in_control:     # the planted family and location were a control finding already
+            named += "; " + ("in control too: " + label(here[0]) if here else "control had: "
+                             + label(next(f for f in ctl["findings"] if key(f) == key(t))))
         print(f"{name:18s} {planted_text(t):34s} {named:44s} {mark:8s} {r['verdict']:16s} "
               f"{r['seconds']:5.0f}")
     print("\ncontrols against the reference diagnoses (control: no validation file, as the planted "
@@ -169,7 +170,8 @@ def table(rows):
     print("\ntotals (hit: the planted family at its location among the new findings):")
     for fam in ("secondary_oscillator", "sensor_gain", "sensor_delay", "added_mass"):
         h, n, c = tot[fam]
-        print(f"  {fam:21s} {h}/{n}" + (f" ({c} already found by the control)" if c else ""))
+        print(f"  {fam:21s} {h}/{n}" + (f" ({c} where the control already had that family and location)"
+                                        if c else ""))
     core = [tot[f] for f in ("secondary_oscillator", "sensor_gain", "sensor_delay")]
     h, n = sum(x[0] for x in core), sum(x[1] for x in core)
     print(f"  gains, delays and appendages: {h}/{n}" + (f" ({100 * h / n:.0f} %)" if n else ""))
