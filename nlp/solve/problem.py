@@ -51,10 +51,11 @@ PREFITS = ("auto", "none", "magnitude", "relative_magnitude", "complex")
 # Iterations of a prefit. Prefits from starts that reach the noise floor took 7-21 IPOPT
 # iterations on tall frames of 16 to 64 storeys (python scripts/bench_scale.py); a start
 # from a far corner of a 129-parameter box was still moving after 500 iterations and
-# then spent 500 more on ln|H| to end 10,000x above the floor. At 5x the converging count
-# the cap also ended one slow start at n = 64 near the floor (f 0.065 against 0.047) while
-# two others reached it: the cap trades such starts for the time of far ones.
-PREFIT_MAX_ITER = 100
+# then spent 500 more on ln|H| to end 10,000x above the floor, and at 256 storeys one
+# prefit iteration takes about 8 s (its Gauss-Newton Hessian alone is 30 Gflop). 50 is
+# 2.5x the slowest converging count; a start still moving then ends (a slow start near
+# the floor included: other starts reach it, or the flags say none did).
+PREFIT_MAX_ITER = 50
 PREFIT_FAR = ("Maximum_Iterations_Exceeded", "Max_Iter_Exceeded")
 
 
