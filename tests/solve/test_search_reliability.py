@@ -261,7 +261,8 @@ def test_stationary_screened_starts_are_not_solved_again(problem, monkeypatch):
     z = np.asarray(problem.z0, float)
     calls = []
 
-    def fake(self, z0=None, screen=False, bounds=None):
+    def fake(self, z0=None, screen=False, bounds=None, prefit=True):
+        assert not prefit  # a re-solve from a screened optimum: no prefit again
         calls.append(screen)
         z0 = np.asarray(z0, float)
         f = float(self.objective(z0))
