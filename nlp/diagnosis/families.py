@@ -22,7 +22,7 @@ import numpy as np
 from nlp.model.parameters import Parameter
 
 __all__ = ["FAMILIES", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
-           "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay"]
+           "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay", "ExtraMode"]
 
 
 def _spring(A, i, j, v):
@@ -288,6 +288,62 @@ class SensorDelay:
         ph = -w * th[0] * 1e-3
         c, s = ca.cos(ph), ca.sin(ph)
         return hr * c - hi * s, hr * s + hi * c
+
+
+@dataclass(frozen=True)
+class ExtraMode:
+    """Model discrepancy: a resonance the model class cannot have (an out-of-plane,
+    torsional or local mode of a planar model), as one modal term on every channel.
+
+    Channel c's FRF gains a_c L_c (j w / w_x)^p w_x^2 / (w_x^2 - w^2 + 2 j zeta_x w_x w),
+    the mode's term in the channel's own output (p = 0 receptance, 1 mobility,
+    2 accelerance; nlp.frf.forms.POWER), with L_c = |H_x| of the channel near f0, so a_c
+    is dimensionless: the term peaks at a_c L_c / (2 zeta_x). A real residue is a
+    lightly damped, nearly classical mode (Ewins, Modal Testing, 2000, ch. 2.6).
+    Parameters: f_x [Hz], zeta_x, a_x per channel.
+
+    channels, powers, levels : names, output powers and L_c of the channels, in order.
+    """
+
+    f0: float
+    channels: tuple
+    powers: tuple = field(default=(), compare=False)
+    levels: tuple = field(default=(), compare=False)
+    family = "model_discrepancy"
+
+    @property
+    def tag(self):
+        return f"x{round(10 * self.f0)}"
+
+    @property
+    def names(self):
+        return (f"f_{self.tag}", f"zeta_{self.tag}") + tuple(
+            f"a_{self.tag}_{c}" for c in self.channels)
+
+    @property
+    def location(self):
+        return {"frequency_hz": round(float(self.f0), 2)}
+
+    def spec(self, ref, a0=0.0):
+        n = len(self.channels)
+        return {"initial": [self.f0, 0.01] + [a0] * n,
+                "lower": [0.97 * self.f0, 5e-4] + [-1.0] * n,
+                "upper": [1.03 * self.f0, 0.1] + [1.0] * n,
+                "scale": [0.01 * self.f0, 0.005] + [0.01] * n, "null": [self.f0, 0.01] + [0.0] * n}
+
+    def output_on(self, channel, hr, hi, w, th):
+        """Channel's FRF (real, imaginary parts) with the mode's term added."""
+        c = self.channels.index(channel)
+        wx = 2 * math.pi * th[0]
+        dr, di = wx ** 2 - w ** 2, 2 * th[1] * wx * w
+        g = th[2 + c] * self.levels[c] * wx ** 2 / (dr ** 2 + di ** 2)
+        tr, ti = g * dr, -g * di                    # g w_x^2 / D, D = dr + j di
+        p = self.powers[c]
+        if p == 1:                                  # times j w / w_x
+            tr, ti = -ti * w / wx, tr * w / wx
+        elif p == 2:                                # times -(w / w_x)^2
+            tr, ti = -tr * (w / wx) ** 2, -ti * (w / wx) ** 2
+        return hr + tr, hi + ti
 
 
 FAMILIES = ("added_mass", "base_flexibility", "secondary_oscillator", "local_damper",

@@ -107,9 +107,22 @@ def system_sx(model, damping, params, enrichments, refs, z):
             base_dof = system["M"].shape[0]
         if hasattr(e, "apply"):
             system = e.apply(system, th_e, ref)
+        elif hasattr(e, "output_on"):   # one term on several channels (model discrepancy)
+            for ch in e.channels:
+                sensor.setdefault(ch, []).append((_OnChannel(e, ch), th_e))
         else:
             sensor.setdefault(e.channel, []).append((e, th_e))
     return M, K, C, system, sensor, base_dof
+
+
+class _OnChannel:
+    """A several-channel family's output on one channel (the sensor families' interface)."""
+
+    def __init__(self, e, channel):
+        self.e, self.channel = e, channel
+
+    def output(self, hr, hi, w, th):
+        return self.e.output_on(self.channel, hr, hi, w, th)
 
 
 def load_vector(target, Ma, n):

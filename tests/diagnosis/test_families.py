@@ -7,7 +7,8 @@ from support.frames import frame_parameter_set, shear_K
 from nlp.model.damping import GeneralDamping
 from nlp.model.nominal import shear_frame
 from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
-                         NonadjacentCoupling, SecondaryOscillator, SensorDelay, SensorGain,
+                         ExtraMode, NonadjacentCoupling, SecondaryOscillator, SensorDelay,
+                         SensorGain,
                          extend_parameters)
 from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
 
@@ -121,3 +122,24 @@ def test_sensor_gain_and_delay_on_one_channel():
     D = _problem(SensorDelay("c3"), [4.0], "force", out)
     np.testing.assert_allclose(D[2], H[2] * np.exp(-1j * W * 4e-3), rtol=1e-9)
     np.testing.assert_allclose(np.abs(D[2]), np.abs(H[2]), rtol=1e-12)
+
+
+def test_extra_mode_adds_a_modal_term_in_each_channels_output():
+    """Model discrepancy (ExtraMode): each channel gains a_c L_c (j w / w_x)^p w_x^2 /
+    (w_x^2 - w^2 + 2 j zeta w_x w), written out here in complex numpy."""
+    M, C, K, Kh = _base()
+    Hr = _numpy_frf(M, C, K, Kh, "force", 0)
+    out = ("receptance", "mobility", "accelerance")
+    p = np.array([0, 1, 2])
+    H = Hr * (1j * W[None, :]) ** p[:, None]
+    levels = (2e-4, 3e-3, 0.05)
+    f_x, zeta, a = 7.3, 0.02, [0.03, -0.02, 0.05]
+    e = ExtraMode(7.0, ("c1", "c2", "c3"), tuple(p), levels)
+    G = _problem(e, [f_x, zeta] + a, "force", out)
+    wx = 2 * np.pi * f_x
+    shape = wx**2 / (wx**2 - W**2 + 2j * zeta * wx * W)
+    for c in range(3):
+        term = a[c] * levels[c] * (1j * W / wx) ** p[c] * shape
+        np.testing.assert_allclose(G[c], H[c] + term, rtol=1e-9, atol=1e-15)
+    ext = ExtraMode(7.0, ("c1", "c2", "c3"), (0, 0, 0), levels)
+    assert ext.names == ("f_x70", "zeta_x70", "a_x70_c1", "a_x70_c2", "a_x70_c3")
