@@ -53,6 +53,9 @@ class Case:
     quality: object = None         # quality.QualityReport of the records (spikes, dropouts)
     has_phase: bool = True         # False for magnitude-only FRF files
     noise: object = None           # noise.NoiseModel of H (per channel and frequency)
+    # model discrepancy a diagnosis adds to every fit (nlp.diagnosis.discrepancy): resonances
+    # outside the model class, as modal terms; empty for updating
+    discrepancy: tuple = ()
 
 
 def assemble(cfg, channels=None, data_file=None):

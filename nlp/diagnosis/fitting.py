@@ -47,6 +47,12 @@ def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, o
     """
     cfg = case.config
     refs = case_references(case)
+    if case.discrepancy:
+        # the model error stays in every fit, so candidates are judged with it present
+        # (nlp.diagnosis.discrepancy); its parameters come first among the added ones
+        if values is not None:
+            values = [e.spec(refs)["initial"] for e in case.discrepancy] + list(values)
+        enrichments = tuple(case.discrepancy) + tuple(enrichments)
     damping, base_params = damping if damping is not None else (case.damping, case.params)
     params = extend_parameters(base_params, enrichments, refs, values)
     options = dict(cfg.solver.options)

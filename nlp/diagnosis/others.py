@@ -31,14 +31,15 @@ def other_tests(cfg):
     return out
 
 
-def setup_others(cfg):
-    """Each other test of the structure, assembled once: case, fitted points, target."""
+def setup_others(cfg, discrepancy=()):
+    """Each other test of the structure, assembled once: case, fitted points, target; the
+    model discrepancy of this test (its modes belong to the structure) is kept there."""
     out = []
     for label, c_cfg, path in other_tests(cfg):
-        c2 = assemble(c_cfg, data_file=path)
+        c2 = replace(assemble(c_cfg, data_file=path), discrepancy=tuple(discrepancy))
         idx = fit_windows(c_cfg, c2, 1)
         out.append({"label": label, "case": c2, "target": fit_target(c2, idx, noise_sigma(c2, idx)),
-                    "at": {}})
+                    "at": {}, "idx": idx})
     return out
 
 

@@ -1,0 +1,164 @@
+"""Model discrepancy: resonances outside the model class, named and kept in every fit.
+
+A planar shear model of a real frame lacks its out-of-plane, torsional and local modes.
+Left out, their misfit is taken up by whichever candidate family absorbs most of it (a
+sensor gain soaks up a mode's tail on one channel), and every candidate competes with
+that misfit instead of with the noise. Here each resonance the baseline lacks
+(:func:`nlp.diagnosis.band.extra_modes`) is first offered to the catalogue families that
+add a resonance of their own (an appendage at each floor, a flexible base). A family
+explains it when fitting the family instead of a free modal term
+(:class:`nlp.diagnosis.families.ExtraMode`: frequency, damping and one residue per
+channel) costs no more than a chi-square test of the restriction allows: the family's
+resonance is then the physics the modal term describes with fewer, physical parameters,
+and the candidate search is left to name it. A resonance no family explains is model
+discrepancy: its modal term stays in every later fit (Case.discrepancy), so candidates
+are judged against the data with it present, and it is reported as what it is, with the
+channels that see it. This is the "embedded" treatment of model error (the discrepancy
+is a parametric term inside the model, fitted with it; Kennedy & O'Hagan, J. R. Stat.
+Soc. B 63, 2001, treat it as a Gaussian process outside), in the form modal updating
+uses for residual modes (Ewins, Modal Testing, 2000, ch. 5.3).
+"""
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from nlp.case.selection import selectable
+from nlp.diagnosis.checks import whole_band
+from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
+from nlp.diagnosis.families import BaseFlexibility, ExtraMode, SecondaryOscillator
+from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
+from nlp.diagnosis.refit import refit
+from nlp.frf.forms import POWER
+
+__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "fit_discrepancy", "explained_by",
+           "described", "subset_z", "LEVEL_HALF_WIDTH"]
+
+# The restriction "a catalogue family instead of a free modal term" is refused when its
+# chi-square rise (scaled by the dispersion) exceeds the 99 % point of a chi-square with
+# as many degrees of freedom as the family has fewer parameters: a 1 % test, so a true
+# appendage is taken for model error once in a hundred.
+RESTRICTION_LEVEL = 0.99
+LEVEL_HALF_WIDTH = 0.01   # L_c: median |H_x| within +-1 % of the resonance
+
+
+def extra_modes_in_band(case, points, base):
+    """ExtraMode terms for the resonances the baseline lacks inside the fitted band (where
+    the fit can measure them), strongest channels first in the log."""
+    whole = whole_band(case, points.base, base.res.z, points.base, base.res.z, points.fit)
+    if not whole:
+        return []
+    ok = selectable(case.config, case.f, case.channels, case.coherence)
+    fsel = case.f[ok]
+    if fsel.size == 0:
+        return []
+    out = []
+    for e in whole["extra_modes"]:
+        f0 = float(e["frequency_hz"])
+        if fsel.min() < f0 * (1 - 0.03) and f0 * (1 + 0.03) < fsel.max():
+            out.append(extra_mode(case, f0))
+    return out
+
+
+def extra_mode(case, f0):
+    """The ExtraMode term at f0 [Hz] on every channel of case."""
+    near = np.abs(case.f / f0 - 1.0) <= LEVEL_HALF_WIDTH
+    levels = tuple(float(np.median(np.abs(case.H[c, near]))) for c in range(len(case.channels)))
+    return ExtraMode(f0, tuple(ch.name for ch in case.channels),
+                     tuple(POWER[ch.output] for ch in case.channels), levels)
+
+
+def _residue_starts(case, pr0, z0, e, idx):
+    """Start residues a_c of mode e: the least-squares projection of the baseline's complex
+    misfit on the term's shape at f0 with zeta_x = 0.01 (magnitudes when there is no phase),
+    and the same with every sign flipped."""
+    w = 2 * np.pi * case.f[idx]
+    Ha = pr0.channel_frfs(z0, w)
+    wx = 2 * np.pi * e.f0
+    g = wx ** 2 / (wx ** 2 - w ** 2 + 2j * 0.01 * wx * w)
+    a = []
+    for c in range(len(e.channels)):
+        shape = e.levels[c] * g * (1j * w / wx) ** e.powers[c]
+        d = case.H[c, idx] - Ha[c] if case.has_phase else np.abs(case.H[c, idx]) - np.abs(Ha[c])
+        s = shape if case.has_phase else np.abs(shape)
+        a.append(float(np.clip(np.real(np.vdot(s, d)) / max(np.vdot(s, s).real, 1e-300), -0.9, 0.9)))
+    return a
+
+
+def fit_discrepancy(case, target, z_base, modes, idx):
+    """The case's model plus every mode's term, fitted from the baseline's optimum z_base:
+    (problem, result). idx: the fitted points (for the residues' starts)."""
+    pr0 = diagnosis_problem(case, target, optimize=False)
+    starts_a = [_residue_starts(case, pr0, z_base, e, idx) for e in modes]
+    c_d = replace(case, discrepancy=tuple(modes))
+    pr = diagnosis_problem(c_d, target, optimize=False)
+    zs = []
+    for sign in (1.0, -1.0):
+        for zeta in (0.01, 0.003):
+            theta = pr.theta(np.concatenate([z_base, np.zeros(pr.params.n_z - z_base.size)]))
+            vals = [v for e, a in zip(modes, starts_a)
+                    for v in [e.f0, zeta] + [sign * x for x in a]]
+            theta[-len(vals):] = vals
+            zs.append(pr.params.z_from_theta(theta))
+    return pr, best_fit(pr, zs)
+
+
+def subset_z(pr, z, modes, keep):
+    """Decision vector of the model with only the modes in keep (z: with all modes)."""
+    n_base = pr.params.n_z - sum(len(m.names) for m in modes)
+    parts, k = [z[:n_base]], n_base
+    for m in modes:
+        if any(m is x for x in keep):
+            parts.append(z[k:k + len(m.names)])
+        k += len(m.names)
+    return np.concatenate(parts)
+
+
+def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held):
+    """The catalogue refit (appendage at a floor, flexible base) that explains the resonance
+    of mode e as well as its free modal term (module docstring), best first; [] when none.
+    pr_d, res_d: the model with every mode fitted."""
+    others = tuple(m for m in modes if m is not e)
+    c_e = replace(case, discrepancy=others)
+    z_cur = subset_z(pr_d, res_d.z, modes, others)
+    chi_d = 2 * res_d.f
+    phi = dispersion(chi_d, n_fit - pr_d.params.n_z)
+    cands = [SecondaryOscillator(p, f0=e.f0, resonances=(e.f0,))
+             for p in range(1, case.model.n + 1)] + [BaseFlexibility()]
+    out = []
+    for cand in cands:
+        r = refit(c_e, target, [], z_cur, cand, 0.0, n_fit, held, sig_held)
+        dof = max(len(e.names) - len(cand.names), 1)
+        rise = (r["chi2"] - chi_d) / phi
+        r["restriction"] = {"scaled_rise": float(rise), "dof": dof,
+                            "limit": float(chi2_dist.ppf(RESTRICTION_LEVEL, dof))}
+        if rise <= r["restriction"]["limit"]:
+            r["problem"] = None
+            out.append(r)
+    return sorted(out, key=lambda r: r["chi2"])
+
+
+def described(pr, z, modes):
+    """Each mode's fitted frequency, damping and residues with quasi-likelihood errors, and
+    the channels that see it (a residue more than SIGNIFICANCE errors from zero)."""
+    theta = pr.theta(z)
+    se = quasi_se(pr, z)[0]
+    names = list(pr.params.names)
+    out = []
+    for m in modes:
+        val = {n: float(theta[names.index(n)]) for n in m.names}
+        err = {n: float(se[names.index(n)]) for n in m.names}
+        seen = [c for c in m.channels
+                if abs(val[f"a_{m.tag}_{c}"]) > SIGNIFICANCE * err[f"a_{m.tag}_{c}"]]
+        f, zeta = val[f"f_{m.tag}"], val[f"zeta_{m.tag}"]
+        out.append({"physics": m.family, "frequency_hz": f,
+                    "frequency_se_hz": err[f"f_{m.tag}"], "damping_ratio": zeta,
+                    "damping_ratio_se": err[f"zeta_{m.tag}"], "channels": seen,
+                    "parameters": val, "uncertainty": err,
+                    "statement": (f"A resonance at {f:.2f} Hz (damping ratio {100 * zeta:.2g} %), "
+                                  f"seen by {', '.join(seen) if seen else 'no channel clearly'}, "
+                                  "that the model class cannot have (an out-of-plane, torsional "
+                                  "or local mode, or a subsystem outside the model): kept in every "
+                                  "fit as model discrepancy, not named as a finding.")})
+    return out

@@ -1,0 +1,75 @@
+"""Model discrepancy (nlp.diagnosis.discrepancy): a resonance outside the model class is
+kept as a modal term and reported with the channels that see it; an appendage's resonance
+is left to the candidate search. FRFs simulated here in numpy, not by the package."""
+
+import numpy as np
+import pytest
+
+from nlp.case.assemble import assemble
+from nlp.diagnosis.discrepancy import described
+from nlp.diagnosis.driver import baseline_stage, discrepancy_stage, points_stage
+
+from tests.support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
+
+m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+F_X = 9.5          # the resonance outside the model [Hz]
+
+
+def _frame_frf(M, C, K, rng):
+    H = np.empty((3, F.size), complex)
+    for i, f in enumerate(F):
+        w = 2 * np.pi * f
+        H[:, i] = (-w**2 * np.linalg.solve(K - w**2 * M + 1j * w * C, np.eye(K.shape[0])[0]))[:3]
+    return H * (1 + 0.005 * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)))
+
+
+def _diagnose_to_discrepancy(folder, H):
+    write_frf(folder, "frf.npz", H)
+    cfg = write_case_yaml(folder, m, k, [("frf.npz", 1)],
+                          {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                          {"model": "rayleigh", "zeta": 0.015})
+    case = assemble(cfg)
+    log = []
+    points = points_stage(cfg, case, 1, (), log.append)
+    base = baseline_stage(cfg, case, points, None, log.append)
+    return discrepancy_stage(cfg, case, points, base, 1, log.append), log
+
+
+@pytest.mark.slow
+def test_a_resonance_outside_the_model_is_kept_as_discrepancy(tmp_path):
+    """An out-of-plane mode seen by floors 1 and 3 only: a modal term -w^2 r_c / (w_x^2 - w^2
+    + 2 j zeta w_x w) added to the sway frame's accelerances."""
+    rng = np.random.default_rng(11)
+    M, C, K = frame_matrices(m, k)
+    H = _frame_frf(M, C, K, rng)
+    w, wx, zx = 2 * np.pi * F, 2 * np.pi * F_X, 0.01
+    r = np.array([0.004, 0.0, -0.003])
+    H += r[:, None] * (-w**2) / (wx**2 - w**2 + 2j * zx * wx * w)
+    (case, points, base), log = _diagnose_to_discrepancy(tmp_path, H)
+    assert len(case.discrepancy) == 1, log
+    d = described(points.base, base.res.z, case.discrepancy)[0]
+    assert abs(d["frequency_hz"] - F_X) < 3 * d["frequency_se_hz"] + 0.01
+    assert set(d["channels"]) == {"a1", "a3"}, d
+
+
+@pytest.mark.slow
+def test_an_appendages_resonance_is_left_to_the_candidates(tmp_path):
+    """An appendage of 3 % of a floor at floor 2 tuned to F_X: its resonance is the
+    family's, so no discrepancy is kept."""
+    rng = np.random.default_rng(12)
+    M3, C3, K3 = frame_matrices(m, k)
+    ms, ws, zs = 0.15, 2 * np.pi * F_X, 0.02
+    ks, cs = ms * ws**2, 2 * zs * ms * ws
+    M, C, K = (np.zeros((4, 4)) for _ in range(3))
+    M[:3, :3], C[:3, :3], K[:3, :3] = M3, C3, K3
+    M[3, 3] = ms
+    for A, v in ((K, ks), (C, cs)):
+        A[1, 1] += v
+        A[3, 3] += v
+        A[1, 3] -= v
+        A[3, 1] -= v
+    H = _frame_frf(M, C, K, rng)
+    (case, _, _), log = _diagnose_to_discrepancy(tmp_path, H)
+    assert any("resonances the model lacks" in line for line in log), log
+    assert case.discrepancy == (), log
+    assert any("secondary_oscillator" in line and "explains it" in line for line in log), log
