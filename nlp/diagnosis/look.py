@@ -68,6 +68,7 @@ class Selection:
     phis: list = field(default_factory=list)
     unconfirmed: list = field(default_factory=list)
     consistency: list = field(default_factory=list)
+    reciprocity: list = field(default_factory=list)   # gain ratios two tests fix (reciprocity)
 
 
 @dataclass
