@@ -10,6 +10,7 @@ import math
 from nlp.diagnosis.evidence import (BIC_ACCEPT, dispersion, evidence, held_out_excess,
                                     held_out_ok, scaled_delta_bic, significance)
 from nlp.diagnosis.families import ZETA_S_MIN
+from nlp.diagnosis.plausible import plausible
 from nlp.diagnosis.resolution import damping_pinned
 
 # A model explains its fitted windows when its reduced chi-square is below 1.5 plus 3
@@ -55,6 +56,8 @@ def decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
                               "not a separate resonance")
         if ok and r["physics"] == "secondary_oscillator":
             ok, why = damping_measured(r)
+        if ok:
+            ok, why = plausible(r)
         r["significant"], r["why_not"] = ok, why
         # no acceptance on the held-out points alone: their mean z^2 is carried by the few
         # anti-resonance points where a tiny parameter moves the model most and the noise

@@ -23,6 +23,8 @@ stages' data (:mod:`nlp.diagnosis.look`):
    separate the candidates (:mod:`.verdict`).
 """
 
+from dataclasses import replace
+import math
 import os
 
 import numpy as np
@@ -34,7 +36,9 @@ from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same
 from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
                                       repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
-from nlp.diagnosis.decide import adequate, better_unresolved, decide
+from nlp.diagnosis.decide import adequate, better_unresolved, decide, where
+from nlp.diagnosis.discrepancy import (explained_by, extra_modes_in_band, fit_discrepancy,
+                                       subset_z)
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
@@ -42,6 +46,7 @@ from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
+from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen, setup_error_result
 from nlp.diagnosis.spread import chi2_spread
@@ -64,7 +69,7 @@ __all__ = ["diagnose", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
 # shoulders, and searches of 600-900 s that named appendages which did not hold on the
 # other level; see docs/method/diagnosis.md).
 LEVEL_MISFIT = 10.0
-STAGES = ("screen", "points", "baseline", "levels", "selection", "widen", "checks", "verdict")
+STAGES = ("screen", "points", "baseline", "discrepancy", "levels", "selection", "widen", "checks", "verdict")
 BASELINE_STARTS = 20   # least scatter-search starts of the baseline: a poor optimum there
                        # would make any added parameter look useful
 
@@ -101,6 +106,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     widened look (when it stands) or this look's checks and verdict."""
     points = points_stage(cfg, case, widen, (), log)
     base = baseline_stage(cfg, case, points, None, log)
+    case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
                          lambda lg: nonlinearity(cfg, lg), log)
@@ -113,11 +119,13 @@ def first_look(cfg, case, opts, widen, screening, log):
     return conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log)
 
 
-def widened_look(cfg, opts, nonlin, hot, seed, log):
+def widened_look(cfg, opts, nonlin, hot, seed, log, discrepancy=()):
     """The look over windows WIDEN x wider, with windows at the hot frequencies [Hz]; the
     level comparison is the first look's (nonlin); seed: the first look's optima and
-    findings (a look after findings), or None (a look after none)."""
-    case = assemble(cfg)
+    findings (a look after findings), or None (a look after none); discrepancy: the first
+    look's model discrepancy, kept (its windows too)."""
+    case = replace(assemble(cfg), discrepancy=tuple(discrepancy))
+    hot = tuple(dict.fromkeys(tuple(hot) + tuple(m.f0 for m in discrepancy)))
     points = points_stage(cfg, case, WIDEN, hot, log)
     base = baseline_stage(cfg, case, points, seed, log)
     level_bound = level_stage(base, nonlin, log)
@@ -133,7 +141,7 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
         log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
         hot = unexplained(case, points.base, base.res.z, points.fit)[1]
-        return widened_look(cfg, opts, nonlin, hot, None, log)
+        return widened_look(cfg, opts, nonlin, hot, None, log, case.discrepancy)
     state = sel.state
     if not leaves_shoulders(base, sel, state["problem"].params.n_z - points.base.params.n_z):
         return None
@@ -145,7 +153,7 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
     extra, hot = unexplained(case, state["problem"], state["z"], points.fit)
     seed = Seed(base.res.z, state["z"], [r["enrichment"] for r in sel.found])
     wide = widened_look(cfg, opts, nonlin, tuple(dict.fromkeys(tuple(hot) + tuple(extra))),
-                        seed, log)
+                        seed, log, case.discrepancy)
     if keeps_findings(wide.result, sel.found):
         return wide
     log("the wider look loses a finding of the first: the first look stands")
@@ -196,12 +204,15 @@ def points_stage(cfg, case, widen, hot, log):
     return Points(widen, fit, held, sig_fit, sig_held, target, base, tuple(hot))
 
 
-def baseline_stage(cfg, case, points, seed, log):
+def baseline_stage(cfg, case, points, seed, log, starts=None):
     """The case's own model at its optimum: a scatter search, or (seeded) a solve from
-    the first look's optima."""
-    advance("diagnose", "baseline")
+    the first look's optima, or from the given starts (with the model discrepancy)."""
+    advance("diagnose", "baseline", step=starts is None)
     pr = points.base
-    if seed is None:
+    if starts is not None:
+        res = step("baseline", fingerprint(points.fit, *starts), lambda: best_fit(pr, starts))
+        converged = bool(res.success)
+    elif seed is None:
         sc = cfg.search
         res, converged = step("baseline", fingerprint(points.fit, points.widen), lambda: scatter_best(
             pr, SearchConfig(starts=max(sc.starts, BASELINE_STARTS), seed=sc.seed,
@@ -233,6 +244,43 @@ def baseline_stage(cfg, case, points, seed, log):
     return Baseline(res, converged, chi, nu, n_fit, held, cells, (sd, n_eff))
 
 
+def discrepancy_stage(cfg, case, points, base, widen, log):
+    """(case, points, baseline) with the model discrepancy (nlp.diagnosis.discrepancy): the
+    resonances the baseline lacks in the band that no catalogue family explains, as modal
+    terms in every later fit, with windows on them; unchanged when there are none."""
+    advance("diagnose", "discrepancy")
+    modes = extra_modes_in_band(case, points, base)
+    if not modes:
+        return case, points, base
+    hot = tuple(m.f0 for m in modes)
+    log("resonances the model lacks in the band: " + ", ".join(f"{f:.2f} Hz" for f in hot)
+        + ": is each one a catalogue family's, or model discrepancy?")
+    wide = points_stage(cfg, case, widen, hot, log)
+    b0 = best_fit(wide.base, [base.res.z])
+    pr_d, res_d = fit_discrepancy(case, wide.target, b0.z, modes, wide.fit)
+    n_fit = wide.base.n_used
+    log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
+        f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
+    keep = []
+    for m in modes:
+        alts = explained_by(case, wide.target, pr_d, res_d, modes, m, n_fit, wide.held,
+                            wide.sig_held)
+        if alts:
+            log(f"  {m.f0:.2f} Hz: {where(alts[0])} explains it as well as a free modal term "
+                f"(scaled chi-square rise {alts[0]['restriction']['scaled_rise']:.1f}, limit "
+                f"{alts[0]['restriction']['limit']:.1f}): left to the candidate search")
+        else:
+            keep.append(m)
+            log(f"  {m.f0:.2f} Hz: no catalogue family explains it as well as a free modal "
+                "term: model discrepancy, kept in every fit")
+    if not keep:
+        return case, points, base
+    case = replace(case, discrepancy=tuple(keep))
+    points = points_stage(cfg, case, widen, hot, log)
+    z0 = subset_z(pr_d, res_d.z, modes, keep)
+    return case, points, baseline_stage(cfg, case, points, None, log, starts=[z0])
+
+
 def level_stage(base, nonlin, log):
     """Whether the structure is level-dependent and the linear model misses the reference
     level by more than LEVEL_MISFIT: then no linear candidate is searched on it."""
@@ -253,7 +301,12 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
                            "held": base.held, "problem": points.base})
     if level_bound:
         return sel, base
-    others = setup_others(cfg)
+    others = setup_others(cfg, case.discrepancy)
+    sel.reciprocity = reciprocal_pairs(case, others, points.fit)
+    for pr in sel.reciprocity:
+        log(f"reciprocity with {pr['test']}: gain of {pr['channel_q']} over {pr['channel_p']} "
+            f"{math.exp(pr['ln_ratio']):.3f} +- {100 * pr['se']:.1f} % (model-free, "
+            f"{pr['windows']} windows)")
     rnd, repolished = 0, 0
     while rnd < opts.max_findings:
         if adequate(sel.state["chi"], base.nu, sel.state["held"]) and rnd > 0:
@@ -341,6 +394,7 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
             f"dBIC {r['delta_bic']:.1f} (phi {r['phi']:.2f}), held-out {r['held_out']:.2f}"
             f"{' (accepted)' if r['accepted'] else ''}"
             f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
+    refute_gains(sel, results, log)
     sel.tried += results
     accepted = sorted([r for r in results if r["accepted"]], key=evidence)
     if others and accepted:
@@ -348,6 +402,26 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
         sel.unconfirmed += rejected
         sel.consistency += recs
     return accepted
+
+
+def refute_gains(sel, results, log):
+    """Refuse accepted sensor gains that contradict the gain ratios reciprocity fixes between
+    the tests (nlp.diagnosis.reciprocity), with the gains already found."""
+    if not sel.reciprocity:
+        return
+    have = {r["location"]["channel"]: r for r in sel.found if r["physics"] == "sensor_gain"}
+    for r in results:
+        if not (r["accepted"] and r["physics"] == "sensor_gain"):
+            continue
+        gains = {c: next(iter(x["parameters"].values())) for c, x in have.items()}
+        errors = {c: next(iter(x["uncertainty"].values())) for c, x in have.items()}
+        ch = r["location"]["channel"]
+        gains[ch] = next(iter(r["parameters"].values()))
+        errors[ch] = next(iter(r["uncertainty"].values()))
+        why = gain_contradiction(sel.reciprocity, gains, errors)
+        if why:
+            r["accepted"], r["significant"], r["why_not"] = False, False, why
+            log(f"  sensor_gain {r['location']}: not accepted: {why}")
 
 
 def adopt(case, points, sel, others, results, accepted, log):
@@ -403,7 +477,8 @@ def _final_records(sel):
     """The other tests' records of the final findings and of what failed there, and each
     unconfirmed candidate once, from its last test (made on top of the final findings)."""
     final = {(r["physics"], repr(r["location"])) for r in sel.found}
-    consistency = [c for c in sel.consistency
+    last = {(c["test"], c["physics"], repr(c["location"])): c for c in sel.consistency}
+    consistency = [c for c in last.values()   # one record per test and candidate, the last
                    if (c["physics"], repr(c["location"])) in final or not c["holds"]]
     seen = set(final)
     unconfirmed = [r for r in reversed(sel.unconfirmed)

@@ -10,13 +10,14 @@ updated parameters may have absorbed, worded as hypotheses.
 from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
 
 __all__ = ["finding_title", "finding_values", "finding_line", "paragraph", "hypotheses",
-           "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES"]
+           "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES", "REST_HEAD"]
 
 REFERENCES = "references.json"   # beside diagnosis.json: the families' reference magnitudes
 # statements of verdict.py that the paragraph says in its own words (not repeated)
 REMAINING = ("With this added, residuals are still above the noise: more is missing than the "
              "candidate families describe.")
 EXTRA_MODES = "Resonances the model does not have (extra modes): "
+REST_HEAD = "The rest of the mismatch sits on "   # verdict.left_statement; shown as a table
 REFIT_STATEMENT = "The data show "   # how a refitted finding's statement begins
 
 # the parameter that says how big a finding is (else its first one)
@@ -105,7 +106,17 @@ def paragraph(d, refs=None):
                                              else "") + ". " + _fit_words(fit))
     if d.get("remaining_mismatch"):
         parts.append("The fit is still worse than the noise allows: more is missing than "
-                     "the candidate families describe.")
+                     "the candidate families describe, so the diagnosis explains the data "
+                     "only in part" + _left_words(d.get("mismatch_left")) + ".")
+    disc = d.get("model_discrepancy") or []
+    if disc:
+        parts.append("The data show " + ("a resonance" if len(disc) == 1 else "resonances")
+                     + " that the model class cannot have, at " + _join(
+                         [f"{x['frequency_hz']:.2f} Hz (seen by {_join(x['channels'])})"
+                          if x.get("channels") else f"{x['frequency_hz']:.2f} Hz" for x in disc])
+                     + ": likely out-of-plane, torsional or local modes. They are kept in the "
+                     "fit as model discrepancy, so no finding above is accepted for absorbing "
+                     "them.")
     extra = d.get("extra_modes") or []
     if extra:
         parts.append("The data also show resonances the model does not have, at "
@@ -113,6 +124,16 @@ def paragraph(d, refs=None):
     if verdict == "ambiguous" and d.get("suggested_measurements"):
         parts.append("The suggested measurements below would tell the candidates apart.")
     return " ".join(p for p in parts if p)
+
+
+def _left_words(left):
+    """Where the rest sits, in a few words: the worst channels and bands."""
+    cells = (left or {}).get("cells") or []
+    if not cells:
+        return ""
+    worst = cells[:3]
+    return ("; the rest sits mostly on " + _join(
+        [f"{c['channel']} at {c['band_hz'][0]:.0f}-{c['band_hz'][1]:.0f} Hz" for c in worst]))
 
 
 def _join(items):
@@ -156,7 +177,8 @@ def other_statements(d):
     their own words: ties, parameter changes, level dependence, ..."""
     own = {f.get("statement") for f in d.get("findings") or []} | {REMAINING}
     heads = tuple(u["statement"][:-1] for u in d.get("unconfirmed") or [] if u.get("statement"))
-    heads += (EXTRA_MODES,)
+    heads += (EXTRA_MODES, REST_HEAD)
+    own |= {x.get("statement") for x in d.get("model_discrepancy") or []}
     return [s for s in d.get("summary") or [] if s not in own and not (heads and s.startswith(heads))]
 
 

@@ -1,4 +1,4 @@
-"""The verdict of a look: adequate, missing_physics or ambiguous, with its statements.
+"""The verdict of a look: adequate, missing_physics, partly_explained or ambiguous.
 
 The verdict and diagnosis.json are built from the stages' data (nlp.diagnosis.look);
 ambiguous verdicts name the measurement that would separate the candidates (SUGGESTIONS).
@@ -7,13 +7,14 @@ ambiguous verdicts name the measurement that would separate the candidates (SUGG
 import os
 import textwrap
 
-from nlp.diagnosis.decide import adequate, where
+from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
+from nlp.diagnosis.discrepancy import described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.look import Conclusion
 from nlp.diagnosis.plain import finding_line, finding_title, finding_values, hypotheses, \
     other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, REFERENCES, \
-    REFIT_STATEMENT, REMAINING
+    REFIT_STATEMENT, REMAINING, REST_HEAD
 from nlp.diagnosis.plots import plot_diagnosis
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.provenance import provenance
@@ -31,6 +32,15 @@ SUGGESTIONS = {
     "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
     "nonlinearity": "the same test at a second excitation level",
 }
+
+# what would tell apart the rest of a partly explained mismatch: with resonances the
+# model lacks, sensors that see the motions a planar model cannot have; without, another
+# view of the same structure
+REST_SUGGESTIONS = {
+    True: ["accelerometers in the other horizontal direction and at two corners of a floor "
+           "(out-of-plane and torsional modes show there)"],
+    False: ["a second shaker position (a force at another floor), diagnosed jointly with "
+            "this test"]}
 
 WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
          "secondary_oscillator": "a secondary oscillator (appendage)",
@@ -81,16 +91,52 @@ def public(r):
     return d
 
 
-def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate):
+def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate, remaining=False,
+             discrepancy=False):
     """The verdict. Candidates that cannot be told apart, or findings that do not hold
     on the case's other tests, with nothing else found, make it "ambiguous": an
     inadequate model is said so, never turned into one confident finding. (Ties after
-    a confirmed finding are reported as what remains, next to it.)"""
+    a confirmed finding are reported as what remains, next to it.) Findings that leave
+    the final model's misfit above what the noise model allows (remaining) make it
+    "partly_explained": what was found is named, the rest is mapped, not claimed. So does
+    model discrepancy (resonances the model class cannot have): the model is incomplete
+    in a way no candidate family describes."""
     if (indistinct or unconfirmed) and not confirmed and not nonlin and not inside:
         return "ambiguous"
-    if confirmed or nonlin or inside:
+    if confirmed or inside:
+        return "partly_explained" if remaining or discrepancy else "missing_physics"
+    if nonlin:
         return "missing_physics"
+    if discrepancy:
+        return "partly_explained"
     return "adequate" if adequate else "ambiguous"
+
+
+# a channel x band cell of the final model's whole-band map is part of what is left when
+# its mean squared normalised residual exceeds this: the held-out adequacy level
+# (decide.ADEQUATE_HELD), the misfit a model that explains its shoulders stays under
+LEFT_CHI2 = ADEQUATE_HELD
+MAX_LEFT_CELLS = 6      # the worst cells named in the summary; diagnosis.json keeps them all
+
+
+def mismatch_left(whole):
+    """Where the final model still misses the data: the whole band's channel x band cells
+    above LEFT_CHI2 (worst first) and the resonances the model lacks."""
+    if not whole:
+        return {"cells": [], "extra_modes": []}
+    cells = sorted((c for c in whole["map"]["after"] if c["chi2"] > LEFT_CHI2),
+                   key=lambda c: -c["chi2"])
+    return {"cells": cells, "extra_modes": whole["extra_modes"]}
+
+
+def left_statement(left):
+    """One sentence: where the rest of the mismatch sits (channels x bands)."""
+    cells = left["cells"][:MAX_LEFT_CELLS]
+    if not cells:
+        return None
+    return (REST_HEAD + "; ".join(
+        f"{c['channel']} at {c['band_hz'][0]:.1f}-{c['band_hz'][1]:.1f} Hz ({c['chi2']:.3g} x "
+        "the noise)" for c in cells) + " (mean squared misfit over the noise, whole band).")
 
 
 
@@ -113,12 +159,14 @@ def _fit_summary(base, state, k, nonlin_found, nonlin, found):
     return fit_before, fit_after
 
 
-def _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found):
+def _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found, extra=()):
     """The measurements that would separate the candidates or settle what remains."""
     suggestions = []
     if verdict == "ambiguous":
         group = sel.indistinct or unconfirmed or sel.tried[:2]
         suggestions = list(dict.fromkeys(SUGGESTIONS[r["physics"]] for r in group))
+    if remaining:
+        suggestions += REST_SUGGESTIONS[bool(extra)]
     if not nonlin_found and not cfg.data.level_files and (verdict == "ambiguous" or remaining):
         suggestions.append(SUGGESTIONS["nonlinearity"] + " (to rule out nonlinearity)")
     if not describe_noise(case.noise)["measured"]:
@@ -187,6 +235,9 @@ def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole):
     out = []
     if remaining:
         out.append(REMAINING)
+        st = left_statement(mismatch_left(whole))
+        if st:
+            out.append(st)
     if verdict == "ambiguous" and not sel.found and not sel.indistinct and not unconfirmed:
         out.append("The model does not explain the data within the noise, and no "
                    "candidate family explains the mismatch.")
@@ -230,20 +281,24 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     state, found, inside = sel.state, sel.found, checks.inside
     unconfirmed = checks.unconfirmed
     nonlin_found = bool(nonlin and nonlin["found"])
-    verdict = classify(found, unconfirmed, sel.indistinct, nonlin_found, inside["findings"],
-                       adequate(base.chi, base.nu, base.held))
     improved, z_imp = state["problem"], state["z"]
+    k = improved.params.n_z - points.base.params.n_z
+    remaining = (bool(found) or bool(inside["findings"])) and not adequate(
+        state["chi"], max(base.nu - k, 1), state["held"])
+    disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
+    verdict = classify(found, unconfirmed, sel.indistinct, nonlin_found, inside["findings"],
+                       adequate(base.chi, base.nu, base.held), remaining, bool(disc))
     cells_after, _, _ = residual_map(case, improved, z_imp, points.fit, points.held,
                                      points.sig_fit, points.sig_held)
-    k = improved.params.n_z - points.base.params.n_z
     fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
-    remaining = bool(found) and not adequate(state["chi"], max(base.nu - k, 1), state["held"])
     findings = [public(r) for r in found] + inside["findings"]
     statements = [f["statement"] for f in findings]
     if nonlin_found:
         findings.insert(0, nonlin["found"])
         statements[:0] = _level_statements(base, nonlin, level_bound)
-    suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found)
+    suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found,
+                               checks.whole["extra_modes"] if checks.whole else ())
+    statements += [d["statement"] for d in disc]
     statements += _tie_statements(sel)
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
     statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, checks.whole)
@@ -261,6 +316,8 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "fitted_parameters": inside["parameters"],
               "damping_decomposition": inside["damping"],
               "summary": statements, "remaining_mismatch": remaining,
+              "model_discrepancy": disc,
+              "mismatch_left": mismatch_left(checks.whole) if remaining else None,
               "evidence_scale": {"phi": sel.phis[0] if sel.phis else 1.0},
               "fit": {"before": fit_before, "after": fit_after},
               "residual_map": {"before": base.cells, "after": cells_after},

@@ -314,6 +314,29 @@ def _fit_section(fit, noise):
     return parts
 
 
+def _discrepancy_section(d):
+    """Model discrepancy (resonances outside the model class) and where the rest of a partly
+    explained mismatch sits, as tables."""
+    parts = []
+    disc = d.get("model_discrepancy") or []
+    if disc:
+        parts += ["<h2>Model discrepancy: resonances the model class cannot have</h2>",
+                  "<p>Kept in every fit as a modal term, so no finding is accepted for "
+                  "absorbing them; not findings themselves.</p>",
+                  _table(["frequency [Hz]", "damping ratio [%]", "seen by"],
+                         [[f"{x['frequency_hz']:.2f} ± {x['frequency_se_hz']:.2g}",
+                           f"{100 * x['damping_ratio']:.2g} ± {100 * x['damping_ratio_se']:.2g}",
+                           ", ".join(x["channels"]) or "no channel clearly"] for x in disc],
+                         "text")]
+    cells = ((d.get("mismatch_left") or {}).get("cells") or [])[:8]
+    if cells:
+        parts += ["<h2>Where the rest of the mismatch sits</h2>",
+                  _table(["channel", "band [Hz]", "mean squared misfit / noise"],
+                         [[c["channel"], f"{c['band_hz'][0]:.1f}-{c['band_hz'][1]:.1f}",
+                           f"{c['chi2']:.3g}"] for c in cells], "text")]
+    return parts
+
+
 def _diagnosis_report(out):
     """Verdict and findings first (in physical units, nlp.diagnosis.plain), the paragraph in
     plain words, what else was seen, the evidence and figures; provenance last."""
@@ -331,6 +354,7 @@ def _diagnosis_report(out):
         parts += ["<h2>Findings</h2>", _table(hdr, _finding_rows(d["findings"], refs), "text")]
         parts += [f"<p>{html.escape(n)}</p>" for n in map(finding_note, d["findings"]) if n]
     parts += ["<h2>In plain words</h2>", f"<p>{html.escape(paragraph(d, refs))}</p>"]
+    parts += _discrepancy_section(d)
     parts += _items("Also seen", other_statements(d))
     parts += _items("Not confirmed by the other tests", unconfirmed_lines(d, refs))
     parts += _items("What the updated parameters may have absorbed (hypotheses)", hypotheses(d),
