@@ -4,8 +4,10 @@ is left to the candidate search. FRFs simulated here in numpy, not by the packag
 
 import numpy as np
 import pytest
+import yaml
 
 from nlp.case.assemble import assemble
+from nlp.case.load import load_case
 from nlp.diagnosis.discrepancy import described
 from nlp.diagnosis.driver import baseline_stage, discrepancy_stage, points_stage
 
@@ -25,9 +27,14 @@ def _frame_frf(M, C, K, rng):
 
 def _diagnose_to_discrepancy(folder, H):
     write_frf(folder, "frf.npz", H)
-    cfg = write_case_yaml(folder, m, k, [("frf.npz", 1)],
-                          {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
-                          {"model": "rayleigh", "zeta": 0.015})
+    write_case_yaml(folder, m, k, [("frf.npz", 1)],
+                    {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                    {"model": "rayleigh", "zeta": 0.015})
+    # the three storey modes, as a real case says (an extra peak is not a fourth mode)
+    doc = yaml.safe_load((folder / "case.yaml").read_text())
+    doc["frequencies"]["n_peaks"] = 3
+    (folder / "case.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    cfg = load_case(str(folder / "case.yaml"))
     case = assemble(cfg)
     log = []
     points = points_stage(cfg, case, 1, (), log.append)
