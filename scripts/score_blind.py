@@ -16,6 +16,8 @@ Printed: one line per case, then
   over all effects and over the detectable ones (size rank >= 2 of the five
   sizes of its family, fixed before any scoring);
 * false alarms: null and ordinary-change cases whose verdict is not `adequate`;
+* wrong extra findings: accepted findings on effect cases beyond the effects found
+  with the right family and location;
   set-up errors claimed on any case (the benchmark has none);
 * the median held-out chi-square ratio (after / before) when the right physics
   is accepted;
@@ -118,6 +120,13 @@ def summary(rows, sizes):
     fa = sum(r["verdict"] != "adequate" for r in quiet)
     print(f"false alarms (null and ordinary-change cases not 'adequate'): {fa}/{len(quiet)} "
           f"({pct(fa, len(quiet))})")
+    # a finding on an effect case that names no concealed effect's family and location is an
+    # error too: every accepted finding beyond the effects it found right
+    n_found = sum(len(r["found"]) for r in rows if r["kind"] == "effect")
+    n_extra = sum(max(len(r["found"]) - sum(e["location_ok"] for e in r["effects"]), 0)
+                  for r in rows if r["kind"] == "effect")
+    print(f"wrong extra findings on effect cases: {n_extra}/{n_found} accepted findings "
+          f"({pct(n_extra, n_found)})")
     print(f"set-up errors claimed (the benchmark has none): "
           f"{sum(r['verdict'] == 'setup_error' for r in rows)}/{len(rows)}")
     ratios = [r["held_out_ratio"] for r in rows if r["kind"] == "effect" and r["held_out_ratio"]
