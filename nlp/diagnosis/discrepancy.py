@@ -22,15 +22,19 @@ uses for residual modes (Ewins, Modal Testing, 2000, ch. 5.3).
 from dataclasses import replace
 
 import numpy as np
+from scipy.linalg import eigh
+from scipy.signal import find_peaks
 from scipy.stats import chi2 as chi2_dist
 
-from nlp.case.selection import selectable
+from nlp.case.selection import detection_form, selectable
+from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL
 from nlp.diagnosis.checks import whole_band
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
 from nlp.diagnosis.families import BaseFlexibility, ExtraMode, SecondaryOscillator
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.refit import refit
 from nlp.frf.forms import POWER
+from nlp.frf.freqsel import MATCH_RATIO
 
 __all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "fit_discrepancy", "explained_by",
            "described", "subset_z", "LEVEL_HALF_WIDTH"]
@@ -45,7 +49,7 @@ LEVEL_HALF_WIDTH = 0.01   # L_c: median |H_x| within +-1 % of the resonance
 
 def extra_modes_in_band(case, points, base):
     """ExtraMode terms for the resonances the baseline lacks inside the fitted band (where
-    the fit can measure them), strongest channels first in the log."""
+    the fit can measure them) that are not its own modes shifted (:func:`shifted`)."""
     whole = whole_band(case, points.base, base.res.z, points.base, base.res.z, points.fit)
     if not whole:
         return []
@@ -53,12 +57,42 @@ def extra_modes_in_band(case, points, base):
     fsel = case.f[ok]
     if fsel.size == 0:
         return []
-    out = []
+    out, peaks = [], measured_peaks(case)
     for e in whole["extra_modes"]:
         f0 = float(e["frequency_hz"])
-        if fsel.min() < f0 * (1 - 0.03) and f0 * (1 + 0.03) < fsel.max():
+        # a resonance is a peak of the measurement; a step or dip against the model (a
+        # moved anti-resonance) is not one
+        if (fsel.min() < f0 * (1 - 0.03) and f0 * (1 + 0.03) < fsel.max()
+                and peaks.size and np.min(np.abs(peaks - f0)) <= NEAR_MODEL * f0
+                and not shifted(case, points.base, base.res.z, f0, peaks)):
             out.append(extra_mode(case, f0))
     return out
+
+
+def measured_peaks(case):
+    """Frequencies [Hz] of the measured resonances: peaks of any channel's accelerance
+    (every mode peaks there) rising ln 1.2 above their surroundings (band.MIN_EXCESS)."""
+    D = np.log(np.abs(detection_form(case.f, case.H, case.channels, case.target.excitation))
+               + 1e-300)
+    out = set()
+    for c in range(D.shape[0]):
+        pk, _ = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
+        out.update(case.f[pk].tolist())
+    return np.array(sorted(out))
+
+
+def shifted(case, pr, z, f0, peaks):
+    """Whether a resonance at f0 [Hz] the model lacks is one of the model's own modes moved:
+    a mode of the updated model within MATCH_RATIO of f0 shows no measured peak within
+    NEAR_MODEL of it. A missing coupling or a mistuned storey moves a mode; the data then
+    show a peak the model lacks and lack the model's, one mode, not an extra one. An
+    appendage tuned near a mode splits it the same way; it is left to the candidates.
+    peaks: the measured resonances [Hz] (:func:`measured_peaks`)."""
+    M, K, _ = pr.matrices(z)
+    f_r = np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
+                              eigvals_only=True))) / (2 * np.pi)
+    near = f_r[np.abs(np.log(f_r / f0)) < np.log(MATCH_RATIO)]
+    return any(peaks.size == 0 or np.min(np.abs(peaks - fr)) > NEAR_MODEL * fr for fr in near)
 
 
 def extra_mode(case, f0):
