@@ -16,7 +16,7 @@ PREFITS = ("auto", "none", "magnitude", "relative_magnitude", "complex")
 # iterations on tall frames of 16 to 64 storeys (python scripts/bench_scale.py); a start
 # from a far corner of a 129-parameter box was still moving after 500 iterations and
 # then spent 500 more on ln|H| to end 10,000x above the floor, and at 256 storeys one
-# prefit iteration takes about 8 s (its Gauss-Newton Hessian alone is 30 Gflop). 50 is
+# IPOPT prefit iteration takes about 7 s (mostly 9-10 line-search trial values). 50 is
 # 2.5x the slowest converging count; a start still moving then ends (a slow start near
 # the floor included: other starts reach it, or the flags say none did).
 PREFIT_MAX_ITER = 50

@@ -323,7 +323,12 @@ class UpdatingProblem:
         """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
         return self._screen_def is not None
 
-    lm_local = False  # True: Levenberg-Marquardt local solves on the numeric backends (prefits: always)
+    # Levenberg-Marquardt (nlp.solve.lm) on the numeric backends, off by default: on tall
+    # frames of 32-64 storeys its prefits from far search starts handed over at local minima
+    # of the complex residual, and IPOPT then crept on ln|H| for 500 iterations (whole run
+    # 284 s against 25 s at 64 storeys); IPOPT's prefits from there stop at their cap
+    lm_prefit = False  # True: prefits by LM, handed over near their minimum
+    lm_local = False   # True: every local solve by LM
 
     # Newton polish where IPOPT ends unconverged; off for solves capped on purpose below
     # the case's iteration limit (candidate refits that only bound their optimum)
@@ -406,7 +411,7 @@ class UpdatingProblem:
         if self.prefit is None:
             return None
         try:
-            if self.prefit.backend != "dense" and self.prefit.solver_config.name == "ipopt":
+            if self.lm_prefit and self.prefit.backend != "dense":
                 pre = self.prefit.solve_lm(z0, bounds=bounds, tol=PREFIT_HANDOVER, handover=True)
             else:
                 pre = self.prefit.solve(z0, screen=True, bounds=bounds)

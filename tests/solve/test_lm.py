@@ -10,6 +10,7 @@ from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.frf.backends import sparse
 from nlp.solve.lm import determined_directions, levenberg_marquardt
+from nlp.solve.problem import UpdatingProblem
 from nlp.testing.tall import case_dict, tall_frame
 
 
@@ -130,3 +131,23 @@ def test_the_chunked_normal_equations_equal_the_dense_ones(tmp_path, monkeypatch
     assert f == pytest.approx(0.5 * float(r @ r), rel=1e-14)
     assert np.allclose(g, J.T @ r, rtol=0, atol=1e-12 * np.abs(J.T @ r).max())
     assert np.allclose(H, J.T @ J, rtol=0, atol=1e-12 * np.abs(J.T @ J).max())
+
+
+@pytest.mark.parametrize("local", [False, True])
+def test_lm_prefit_and_local_solves_reach_the_noise_floor_of_a_tall_frame(tmp_path, monkeypatch,
+                                                                           local):
+    fr = tall_frame(16, seed=0)
+    np.savez_compressed(tmp_path / "frf.npz", f=fr.f, H=fr.H)
+    (tmp_path / "case.yaml").write_text(yaml.safe_dump(case_dict(fr), sort_keys=False))
+    monkeypatch.setattr(UpdatingProblem, "lm_prefit", True)
+    monkeypatch.setattr(UpdatingProblem, "lm_local", local)
+    case = assemble(load_case(str(tmp_path / "case.yaml")))
+    problem = build_problem(case)
+    res = problem.solve()
+    assert res.success and res.prefit_iterations > 0
+    assert res.status.startswith("Stationary (Levenberg") == local
+    # ln|H (1 + noise e)| = ln|H| + noise Re(e) to first order: variance noise^2 / 2 per point
+    assert res.f < 1.3 * 0.5 * problem.n_used * fr.noise ** 2 / 2
+    k = np.array([p.nominal * (1 + t) for p, t in zip(case.params.params, problem.theta(res.z))
+                  if p.group == "stiffness"])
+    assert np.max(np.abs(k / fr.k - 1)) < 0.01
