@@ -13,9 +13,12 @@ Printed per model:
              its ratio to the flop-and-memory bound of docs/method/backends.md
              ("Cost of one evaluation", nlp.frf.backends.cost; banded systems only), with
              this machine's measured rates
-  iters      IPOPT iterations of the best start (prefit + main)
+  iters      local-solver iterations of the best start: prefit + main
   solve      median seconds of a local solve
-  run        whole run (all starts, polishing, reporting)
+  run        whole run (all starts, polishing, reporting), wall seconds
+  cpu        its CPU seconds (this process and its finished worker processes), and the
+             1-minute load average at its end: on a shared machine wall time is not the
+             target figure
   k err      largest |k_fit / k_true - 1| over the storeys, and the largest |error| / SE
   flags      the result's flags
 Then the growth exponent of the evaluation and of the whole run in n (least squares on
@@ -24,11 +27,13 @@ logs over the frames run).
 Run:  python scripts/bench_scale.py [--sizes 16 32 64 256] [--starts 4] [--workers 2]
       [--frequencies default|all] [--case cases/frame3d_2100/case.yaml ...]
       [--eval-only 1024]   (sizes whose whole run is not attempted: build and one evaluation)
+      [--lm none|prefit|all]   (Levenberg-Marquardt prefits or local solves, nlp/solve/lm.py)
 """
 
 import argparse
 import json
 import os
+import resource
 import tempfile
 import time
 
@@ -40,6 +45,7 @@ from nlp.case.assemble import assemble, build_problem
 from nlp.case.load import load_case
 from nlp.frf.backends.cost import evaluation_cost, machine_rates
 from nlp.solve.executors.threads import limit_blas_threads
+from nlp.solve.problem import UpdatingProblem
 from nlp.testing.tall import case_dict, tall_frame
 
 
@@ -83,12 +89,19 @@ def build_and_eval(path, rates):
     return case, row
 
 
+def _cpu():
+    """CPU seconds of this process and of its children that have ended (the workers)."""
+    return sum(getattr(resource.getrusage(who), f) for who in (resource.RUSAGE_SELF,
+               resource.RUSAGE_CHILDREN) for f in ("ru_utime", "ru_stime"))
+
+
 def whole_run(path, out, starts, workers):
-    t0 = time.perf_counter()
+    """(result.json, wall seconds, CPU seconds, load average at the end)."""
+    t0, c0 = time.perf_counter(), _cpu()
     nlp.run(path, out, log=lambda m: None, starts=starts, workers=workers)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, _cpu() - c0
     with open(os.path.join(out, "result.json")) as fh:
-        return json.load(fh), seconds
+        return json.load(fh), seconds, cpu, os.getloadavg()[0]
 
 
 def frame_errors(result, fr):
@@ -125,7 +138,7 @@ def run_summary(result):
     best = min((s for s in result["search"]["starts"] if s["success"]),
                key=lambda s: s["f"], default=None)
     solves = [s["seconds"] for s in result["search"]["starts"]]
-    return {"iters": best["iterations"] if best else -1,
+    return {"iters": f"{best.get('prefit_iterations', 0)}+{best['iterations']}" if best else "-",
             "solve": float(np.median(solves)) if solves else np.nan,
             "flags": ",".join(f["kind"] for f in result["flags"]) or "-"}
 
@@ -133,7 +146,8 @@ def run_summary(result):
 def print_row(name, r):
     print(f"{name:<16}{r.get('n', 0):>6}{r['n_z']:>6}{r['N']:>7}  {r['backend']:<8}"
           f"{r['build']:>7.2f}{r['eval']:>9.3f}{r['ratio']:>7.1f}"
-          f"{r.get('iters', -1):>7}{r.get('solve', np.nan):>9.1f}{r.get('run', np.nan):>9.1f}"
+          f"{r.get('iters', '-'):>8}{r.get('solve', np.nan):>9.1f}{r.get('run', np.nan):>9.1f}"
+          f"{r.get('cpu', np.nan):>9.1f}{r.get('load', np.nan):>6.1f}"
           f"{r.get('err', np.nan):>9.2%}{r.get('z', np.nan):>8.1f}  {r.get('flags', '')}",
           flush=True)
 
@@ -146,14 +160,19 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--frequencies", choices=("default", "all"), default="default")
     ap.add_argument("--case", nargs="*", default=[])
+    ap.add_argument("--lm", choices=("none", "prefit", "all"), default="none",
+                    help="Levenberg-Marquardt (nlp/solve/lm.py) for the prefits or every local solve")
     ap.add_argument("--keep", default=None, help="folder for the cases and results (default: temporary)")
     args = ap.parse_args()
+    UpdatingProblem.lm_prefit = args.lm in ("prefit", "all")  # forked workers inherit it
+    UpdatingProblem.lm_local = args.lm == "all"
     rates = machine_rates()
     print(f"machine: {rates[0] / 1e9:.1f} GFlop/s (one-thread matrix product), "
           f"{rates[1] / 1e9:.1f} GB/s (array copy); {args.starts} starts, {args.workers} workers, "
           f"frequencies {args.frequencies}")
     head = (f"{'model':<16}{'n':>6}{'n_z':>6}{'N':>7}  {'backend':<8}{'build':>7}{'eval':>9}"
-            f"{'/bound':>7}{'iters':>7}{'solve':>9}{'run':>9}{'k err':>9}{'err/SE':>8}  flags")
+            f"{'/bound':>7}{'iters':>8}{'solve':>9}{'run':>9}{'cpu':>9}{'load':>6}{'k err':>9}"
+            f"{'err/SE':>8}  flags")
     print(head + "\n" + "-" * len(head))
     root = args.keep or tempfile.mkdtemp(prefix="bench_scale_")
     rows = []
@@ -162,8 +181,8 @@ def main():
         _, r = build_and_eval(path, rates)
         r["n"] = n
         if n in args.sizes:
-            result, r["run"] = whole_run(path, os.path.join(root, f"out_{n}"), args.starts,
-                                         args.workers)
+            result, r["run"], r["cpu"], r["load"] = whole_run(
+                path, os.path.join(root, f"out_{n}"), args.starts, args.workers)
             r.update(run_summary(result))
             r["err"], r["z"] = frame_errors(result, fr)
         rows.append(r)
@@ -171,8 +190,9 @@ def main():
     for path in args.case:
         case, r = build_and_eval(path, rates)
         r["n"] = case.model.n
-        result, r["run"] = whole_run(path, os.path.join(root, f"out_{case.config.name}"),
-                                     case.config.search.starts, args.workers)
+        result, r["run"], r["cpu"], r["load"] = whole_run(
+            path, os.path.join(root, f"out_{case.config.name}"), case.config.search.starts,
+            args.workers)
         r.update(run_summary(result))
         r["err"], r["z"] = case_errors(result, path)
         print_row(case.config.name[:15], r)

@@ -37,54 +37,16 @@ from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
+from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
 from nlp.solve.polish import MAX_PARAMETERS, newton_polish
+from nlp.solve.prefit import PREFIT_FAR, PREFIT_MAX_ITER, PREFITS, prefit_residual
 from nlp.solve.residuals import RESIDUALS, data_arrays, frequency_functions, pack_data
-from nlp.solve.stopping import STATIONARY, gauss_newton_decrement
+from nlp.solve.stopping import STATIONARY, decrement_normal, gauss_newton_decrement
 
 __all__ = ["SOLVERS", "PREFITS", "PREFIT_MAX_ITER", "prefit_residual", "Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
 
 SOLVERS = ("ipopt", "sqpmethod")
-PREFITS = ("auto", "none", "magnitude", "relative_magnitude", "complex")
-
-
-# Iterations of a prefit. Prefits from starts that reach the noise floor took 7-21 IPOPT
-# iterations on tall frames of 16 to 64 storeys (python scripts/bench_scale.py); a start
-# from a far corner of a 129-parameter box was still moving after 500 iterations and
-# then spent 500 more on ln|H| to end 10,000x above the floor, and at 256 storeys one
-# prefit iteration takes about 8 s (its Gauss-Newton Hessian alone is 30 Gflop). 50 is
-# 2.5x the slowest converging count; a start still moving then ends (a slow start near
-# the floor included: other starts reach it, or the flags say none did).
-PREFIT_MAX_ITER = 50
-PREFIT_FAR = ("Maximum_Iterations_Exceeded", "Max_Iter_Exceeded")
-
-
-def prefit_residual(requested, residual, backend, has_phase=True):
-    """The residual of the first solve of every start, or None (no prefit).
-
-    ln|H| has a logarithmic singularity at every anti-resonance, and an anti-resonance
-    of the model a little off the data's makes a spike of the residual that moves with
-    the parameters: with many modes in the band (tall frames, FE models) the
-    log-magnitude objective has many local minima. The complex residual (H_a - H_x) /
-    |H_x| is smooth in the parameters and weighs every mode alike; without phase,
-    relative_magnitude (|H_a| - |H_x|) / |H_x| is its magnitude-only analogue (the
-    channel-RMS ``magnitude`` form sees only the largest peaks: on a 64-storey frame it
-    left the upper storeys free, and the log fit from there ended at 56 % errors).
-    Measured on tall frames with per-storey parameters, one start from the nominal
-    model (python scripts/bench_scale.py; docs/method/updating.md): log-magnitude
-    alone ends at 1,200 (n = 16) times its noise floor; a complex prefit reaches the
-    floor at n = 16, 32 and 64; a relative_magnitude prefit reaches 3.1 times it at n = 64.
-    ``auto`` prefits log-magnitude fits on the numeric backends (more DOFs than the dense
-    backend takes, :data:`nlp.frf.backends.DENSE_MAX`); small models keep the single
-    solve (their few modes leave no local minimum near z0 on the shipped cases).
-    """
-    if requested not in PREFITS:
-        raise ValueError(f"prefit must be one of {PREFITS}, got {requested!r}")
-    if requested == "auto":
-        if residual != "log_magnitude" or backend == "dense":
-            return None
-        return "complex" if has_phase else "relative_magnitude"
-    return None if requested == "none" or requested == residual else requested
 
 
 _DEFAULT_OPTIONS = {
@@ -361,6 +323,13 @@ class UpdatingProblem:
         """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
         return self._screen_def is not None
 
+    # Levenberg-Marquardt (nlp.solve.lm) on the numeric backends, off by default: on tall
+    # frames of 32-64 storeys its prefits from far search starts handed over at local minima
+    # of the complex residual, and IPOPT then crept on ln|H| for 500 iterations (whole run
+    # 284 s against 25 s at 64 storeys); IPOPT's prefits from there stop at their cap
+    lm_prefit = False  # True: prefits by LM, handed over near their minimum
+    lm_local = False   # True: every local solve by LM
+
     # Newton polish where IPOPT ends unconverged; off for solves capped on purpose below
     # the case's iteration limit (candidate refits that only bound their optimum)
     polish_unconverged = True
@@ -390,22 +359,7 @@ class UpdatingProblem:
                                iterations=0, seconds=time.perf_counter() - t0, z0=z0c,
                                prefit_iterations=pre.iterations)
         z_start = z0c if pre is None else pre.z
-        g0 = np.zeros(self.ng)
-        solver = self._solver
-        if screen and self.can_screen:
-            if self._screen_solver is None:  # built once per process, on first use
-                nlp, opts = self._screen_def
-                self._screen_solver = ca.nlpsol("screen", self.solver_config.name, nlp, opts)
-            solver = self._screen_solver
-        if self._stop is not None:
-            self._stop.calls = 0
-        sol = solver(x0=z_start, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
-        st = solver.stats()
-        status = str(st.get("return_status", "unknown"))
-        iters = int(st.get("iter_count", -1))
-        z = np.asarray(sol["x"]).ravel()
-        success = bool(st.get("success", False))
-        f = float(sol["f"])
+        z, f, success, status, iters = self._local(z_start, lo, hi, screen)
         if not success and status in ("User_Requested_Stop", "Maximum_Iterations_Exceeded",
                                       "Maximum_CpuTime_Exceeded", "Search_Direction_Becomes_Too_Small",
                                       "Solved_To_Acceptable_Level"):
@@ -424,16 +378,78 @@ class UpdatingProblem:
                            seconds=seconds, z0=z0c,
                            prefit_iterations=0 if pre is None else pre.iterations)
 
+    @property
+    def uses_lm(self):
+        """Are local solves Levenberg-Marquardt (:mod:`nlp.solve.lm`)? On the numeric
+        backends with IPOPT chosen: IPOPT's undamped Gauss-Newton steps along the nearly
+        null directions of J^T J of many-parameter fits (the top storeys of a tall frame:
+        eigenvalue 2e-11 against 1e5) ran to steps of 0.004 and to its iteration limit."""
+        return self.backend != "dense" and self.solver_config.name == "ipopt" and self.lm_local
+
+    def _local(self, z_start, lo, hi, screen):
+        """(z, f, success, status, iterations) of one local solve from z_start."""
+        if self.uses_lm:
+            res = self.solve_lm(z_start, (lo, hi))
+            return res.z, res.f, res.success, res.status, res.iterations
+        g0 = np.zeros(self.ng)
+        solver = self._solver
+        if screen and self.can_screen:
+            if self._screen_solver is None:  # built once per process, on first use
+                nlp, opts = self._screen_def
+                self._screen_solver = ca.nlpsol("screen", self.solver_config.name, nlp, opts)
+            solver = self._screen_solver
+        if self._stop is not None:
+            self._stop.calls = 0
+        sol = solver(x0=z_start, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
+        st = solver.stats()
+        return (np.asarray(sol["x"]).ravel(), float(sol["f"]), bool(st.get("success", False)),
+                str(st.get("return_status", "unknown")), int(st.get("iter_count", -1)))
+
     def _prefit(self, z0, bounds):
         """The prefit solve from z0 (:func:`prefit_residual`), or None: none set, or it
         failed (the case's residual then starts from z0 itself)."""
         if self.prefit is None:
             return None
         try:
-            pre = self.prefit.solve(z0, screen=True, bounds=bounds)
+            if self.lm_prefit and self.prefit.backend != "dense":
+                pre = self.prefit.solve_lm(z0, bounds=bounds, tol=PREFIT_HANDOVER, handover=True)
+            else:
+                pre = self.prefit.solve(z0, screen=True, bounds=bounds)
         except (RuntimeError, np.linalg.LinAlgError, FloatingPointError):
             return None
         return pre if np.all(np.isfinite(pre.z)) and np.isfinite(pre.f) else None
+
+    def normal_equations(self, z):
+        """(f, J^T r, J^T J) at z; the numeric backends sum them per chunk of frequencies
+        without holding J (:meth:`nlp.frf.backends.sparse.SparseFRF.normal_equations`)."""
+        z = np.asarray(z, float)
+        if self.backend == "dense":
+            r, J = self.residuals(z)
+            return 0.5 * float(r @ r), J.T @ r, J.T @ J
+        r, g, A = self.evaluator.normal_equations(z, self._data(self._p))
+        return 0.5 * float(r @ r), g, A
+
+    def solve_lm(self, z0=None, bounds=None, tol=LM_STATIONARY, handover=False):
+        """One Levenberg-Marquardt solve from z0 (:mod:`nlp.solve.lm`), as a LocalResult;
+        its iteration limit is the solver's ``max_iter``, its stop ``tol`` (in s^2);
+        ``handover``: a prefit, stopped near its minimum on the determined directions."""
+        z0 = self.z0 if z0 is None else np.asarray(z0, float)
+        lo, hi = self.bounds if bounds is None else bounds
+        opts = self.solver_config.nlpsol_options()
+        max_iter = int(opts.get("ipopt.max_iter", opts.get("max_iter", 500)))
+        G, h = self.constraint_jacobian(), None
+        if G.shape[0]:  # the total-mass anchor, G z = h (linear, Eqn 24)
+            _, sb, _ = self.params.slices()
+            sr = np.array([float(A.sum()) for A in self.model.M_infl])
+            h = G @ z0 - (float(self.model.M0.sum()) + sr @ self.theta(z0)[sb] - self.total_mass)
+        t0 = time.perf_counter()
+        res = levenberg_marquardt(self.normal_equations, self.objective, z0, lo, hi,
+                                  self.n_used - self.params.n_z, max_iter=max_iter,
+                                  G=G if G.shape[0] else None, h=h, tol=tol,
+                                  undetermined=not handover)
+        return LocalResult(z=res.z, f=res.f, success=res.success, status=res.status,
+                           iterations=res.iterations, seconds=time.perf_counter() - t0,
+                           z0=np.clip(z0, lo, hi))
 
     def _polish(self, z, f, lo, hi, status):
         """Newton steps on the full Hessian where the Gauss-Newton solver stopped short of a
@@ -456,8 +472,12 @@ class UpdatingProblem:
         steps that keep the bounds active where the gradient presses on them and the
         total-mass anchor satisfied (g = J^T r; 2 f is the chi-square). Small means
         stationary, whatever the size of the misfit
-        (:func:`nlp.solve.stopping.gauss_newton_decrement`)."""
+        (:func:`nlp.solve.stopping.gauss_newton_decrement`; on the numeric backends from
+        the normal equations, :func:`nlp.solve.stopping.decrement_normal`)."""
         z = np.asarray(z, float)
-        r, J = self.residuals(z)
         lo, hi = self.bounds
+        if self.backend != "dense":
+            _, g, A = self.normal_equations(z)
+            return decrement_normal(z, g, A, lo, hi, self.constraint_jacobian())
+        r, J = self.residuals(z)
         return gauss_newton_decrement(z, r, J, lo, hi, self.constraint_jacobian())

@@ -12,7 +12,7 @@ import numpy as np
 from nlp.solve.identify import tangent_basis
 
 __all__ = ["SCREEN_TOL", "STATIONARY", "STATIONARY_EVERY", "STATIONARY_FROM", "LIMIT_STATUSES",
-           "gauss_newton_decrement", "StopWhenStationary"]
+           "gauss_newton_decrement", "free_variables", "decrement_normal", "StopWhenStationary"]
 
 SCREEN_TOL = 1e-5  # IPOPT tol of screening solves (the default tol is 1e-8)
 # A point is stationary when a Gauss-Newton step would lower the chi-square 2 f by less than
@@ -28,6 +28,12 @@ LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
                   "Maximum_WallTime_Exceeded", "Max_Iter_Exceeded")
 
 
+def free_variables(z, g, lo, hi):
+    """The variables a descent step may move: not on a bound the gradient g presses them on."""
+    near = 1e-7 * np.maximum(1.0, np.abs(z))
+    return ~(((z <= lo + near) & (g > 0)) | ((z >= hi - near) & (g < 0)))
+
+
 def gauss_newton_decrement(z, r, J, lo, hi, G):
     """g^T (J^T J)^+ g on the steps that keep the bounds active where the gradient
     g = J^T r presses on them and the linear equality constraints G dz = 0 satisfied.
@@ -38,11 +44,21 @@ def gauss_newton_decrement(z, r, J, lo, hi, G):
     g = J.T @ r
     if not np.all(np.isfinite(g)):
         return np.inf
-    near = 1e-7 * np.maximum(1.0, np.abs(z))
-    free = ~(((z <= lo + near) & (g > 0)) | ((z >= hi - near) & (g < 0)))
+    free = free_variables(z, g, lo, hi)
     N = tangent_basis(G[:, free], int(free.sum()))
     JN, gN = J[:, free] @ N, N.T @ g[free]
     return float(gN @ np.linalg.pinv(JN.T @ JN) @ gN)
+
+
+def decrement_normal(z, g, A, lo, hi, G=None):
+    """:func:`gauss_newton_decrement` from the normal equations, g = J^T r and A = J^T J
+    (no J: n_z^2 memory, and no n_r n_z^2 product with the tangent basis)."""
+    if not np.all(np.isfinite(g)):
+        return np.inf
+    free = free_variables(z, g, lo, hi)
+    N = tangent_basis(None if G is None else G[:, free], int(free.sum()))
+    gN = N.T @ g[free]
+    return float(gN @ np.linalg.pinv(N.T @ A[np.ix_(free, free)] @ N) @ gN)
 
 
 class StopWhenStationary(ca.Callback):

@@ -309,29 +309,53 @@ class SparseFRF:
         G = np.stack([wt * fac / s, -1j * wt * fac / s], axis=1).reshape(-1, E.shape[1])
         return R, G  # Im(x) = Re(-j x)
 
+    def _chunk_rows(self, z, data, jacobian):
+        """(slice, R (n_res, N_c), D (n_z, n_res, N_c) or None) per chunk of frequencies
+        (``CHUNK_BYTES``): the residual rows of Eqn 25a and their derivatives."""
+        w, yr, yi, s, wt = data
+        n_ch, N, nz = len(self.power), w.size, self.params.n_z
+        n_res = n_ch * (2 if self.residual == "complex" else 1)
+        ch = np.arange(n_res) // (n_res // n_ch)
+        st = self._state(z)
+        for sl in self._chunks(N, n_res):
+            H, fac, q, Lam = self._channels(st, w[sl], jacobian)
+            R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
+            D = None
+            if jacobian:
+                G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
+                D = np.zeros((nz, n_res, sl.stop - sl.start))
+                self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
+            yield sl, R, D
+
     def residuals(self, z, data, jacobian=True):
         """(r, J) ordered like the dense backend: frequency-major, residual-minor.
 
         Computed over chunks of frequencies (``CHUNK_BYTES``), written straight into J,
         which is stored column-major (each parameter's column contiguous, as J^T J wants).
         """
-        w, yr, yi, s, wt = data
-        n_ch, N, nz = len(self.power), w.size, self.params.n_z
-        n_res = n_ch * (2 if self.residual == "complex" else 1)
-        ch = np.arange(n_res) // (n_res // n_ch)
-        st = self._state(z)
+        N, nz = data[0].size, self.params.n_z
+        n_res = len(self.power) * (2 if self.residual == "complex" else 1)
         r = np.empty(N * n_res)
         Jt = np.empty((nz, N, n_res)) if jacobian else None
-        for sl in self._chunks(N, n_res):
-            H, fac, q, Lam = self._channels(st, w[sl], jacobian)
-            R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
-            G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
+        for sl, R, D in self._chunk_rows(z, data, jacobian):
             r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
             if jacobian:  # a contiguous block for the sums, one transposing copy into J
-                D = np.zeros((nz, n_res, sl.stop - sl.start))
-                self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
                 Jt[:, sl] = D.transpose(0, 2, 1)
         return r, (Jt.reshape(nz, -1).T if jacobian else None)
+
+    def normal_equations(self, z, data):
+        """(r, J^T r, J^T J) summed chunk by chunk: J is never held whole (memory flat in N;
+        the Gauss-Newton Hessian costs n_z^2 n_res flops per frequency either way)."""
+        N, nz = data[0].size, self.params.n_z
+        n_res = len(self.power) * (2 if self.residual == "complex" else 1)
+        r = np.empty(N * n_res)
+        g, A = np.zeros(nz), np.zeros((nz, nz))
+        for sl, R, D in self._chunk_rows(z, data, True):
+            r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
+            Dm = D.reshape(nz, -1)
+            A += Dm @ Dm.T  # one symmetric rank update (numpy calls syrk for X @ X.T)
+            g += Dm @ R.ravel()
+        return r, g, A
 
     def cached_value(self, z, data_key, data):
         """r at z without its Jacobian (a line-search trial point: about 1/3 of the cost of
