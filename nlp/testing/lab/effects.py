@@ -94,9 +94,9 @@ def cubic_for_change(change, k, amplitude):
 
 def crack_equivalent(delta):
     """Equivalent linear stiffness ratio of the bilinear story, k_eq / k, from the
-    period of the bilinear oscillator: 2 / (1 + 1 / sqrt(1 - delta)) (half cycles at k
-    and at (1 - delta) k)."""
-    return 2.0 / (1.0 + 1.0 / np.sqrt(1.0 - delta))
+    period of the bilinear oscillator, half cycles at k and at (1 - delta) k:
+    T = pi/w_1 + pi/w_2, so w_eq/w_1 = 2 / (1 + 1/sqrt(1 - delta)), squared."""
+    return (2.0 / (1.0 + 1.0 / np.sqrt(1.0 - delta))) ** 2
 
 
 def link_arrays(links):

@@ -70,7 +70,9 @@ def lateral_K_opensees(EI_c, EI_b, h, L, n_cols=2):
     members, equalDOF floors): the flexibility under unit floor loads, inverted."""
     import openseespy.opensees as ops
     n = len(EI_c)
-    big_A, E = 1e6, 1.0
+    E = 1.0
+    # axially stiff members: EA/h some 1e8 times the bending stiffness 12 EI/h^3
+    big_A = 1e8 * max(np.max(EI_c), np.max(EI_b)) / min(h, L) ** 2
     F = np.zeros((n, n))
     for load_floor in range(1, n + 1):
         ops.wipe()

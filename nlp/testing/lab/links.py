@@ -4,7 +4,7 @@ effects outside the tool's families (friction, breathing crack, sliding mass).""
 
 import numpy as np
 
-from nlp.testing.lab.effects import G
+from nlp.testing.lab.effects import G, crack_equivalent
 
 JOINT_CHANGE = (0.005, 0.01)   # |k_eq(3x level) - k_eq(level 1)| / k of every story's joints
 JOINT_SOFTENING = 0.75         # share of stories whose joints soften
@@ -71,7 +71,8 @@ def friction(story, size, k_s, q1, v1, u):
 def crack(story, size, k_s):
     """Bilinear story: k closed, (1 - size) k open."""
     i, j = story_pair(story)
-    return {"kind": "crack", "i": i, "j": j, "story": story, "delta": float(size), "k": float(k_s)}
+    return {"kind": "crack", "i": i, "j": j, "story": story, "delta": float(size), "k": float(k_s),
+            "equivalent_stiffness_ratio": float(crack_equivalent(size))}
 
 
 def sliding_mass(rng, M, C, K, floor, size, a_peak, f_first, f_top):

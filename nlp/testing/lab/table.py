@@ -45,14 +45,18 @@ def with_table(M, C, K, Kh, r, m_t, k_a, c_a):
 def command_force(a_c, fs, f_lo, k_a, c_a):
     """k_a x_c + c_a x_c' for a commanded acceleration a_c (samples at fs): x_c by
     dividing by (j w)^2 above f_lo (a table has no stroke for lower frequencies), on the
-    record zero-padded to twice its length."""
+    record zero-padded to twice its length; then the line x_c(0) + x_c'(0) t is taken off
+    (zero acceleration), so that the table starts at rest."""
     N = 2 * a_c.size
     A = np.fft.rfft(a_c, N)
     w = 2 * np.pi * np.fft.rfftfreq(N, 1 / fs)
     X = np.zeros_like(A)
     keep = w >= 2 * np.pi * f_lo
     X[keep] = -A[keep] / w[keep] ** 2
-    return np.fft.irfft((k_a + 1j * w * c_a) * X, N)[:a_c.size]
+    x = np.fft.irfft(X, N)[:a_c.size]
+    v = np.fft.irfft(1j * w * X, N)[:a_c.size]
+    t = np.arange(a_c.size) / fs
+    return k_a * (x - x[0] - v[0] * t) + c_a * (v - v[0])
 
 
 def table_transfer(M, C, K, r, m_t, k_a, c_a, f):
@@ -61,7 +65,7 @@ def table_transfer(M, C, K, r, m_t, k_a, c_a, f):
     out = []
     for fk in np.atleast_1d(f):
         w = 2 * np.pi * fk
-        b = np.zeros(Ma.shape[0])
+        b = np.zeros(Ma.shape[0], complex)
         b[-1] = k_a + 1j * w * c_a
         out.append(np.linalg.solve(Ka - w * w * Ma + 1j * w * Ca, b)[-1])
     return np.array(out)
