@@ -7,7 +7,7 @@ import pytest
 
 from nlp.testing.frames import shear_K
 from nlp.testing.lab.frames import (beam_EI_for_rho, cantilever_K, eccentric_model, lateral_K,
-                                    lateral_K_opensees, muto_story_k)
+                                    lateral_K_opensees, muto_story_k, story_k_from_load)
 
 EI_C = np.array([1.0, 1.2, 0.9, 1.1]) * 100.0
 H, L = 1.0, 1.5
@@ -64,3 +64,12 @@ def test_eccentric_model_without_eccentricity_decouples_torsion():
     assert np.isclose(K[8, 8], 2 * 1000.0 * 0.4**2 + 2 * 1000.0 * 0.5**2)
     Me, Ke = eccentric_model(m, (kx / 2, kx / 2), (kx / 2, kx / 2), (1.5, 1.2), (0.0, 0.1), (0.5, 0.4))
     assert _x_theta_coupling(Me, Ke) > 0.0
+
+
+def test_story_stiffnesses_from_a_load_are_exact_for_a_shear_frame_and_for_that_load():
+    k = np.array([3000.0, 2500.0, 2000.0])
+    load = np.array([1.0, 2.0, 3.0])
+    assert np.allclose(story_k_from_load(shear_K(k), load), k)
+    K = lateral_K(EI_C[:3], beam_EI_for_rho(0.7, EI_C[:3], H, L), H, L)
+    ks = story_k_from_load(K, load)
+    assert np.allclose(np.linalg.solve(shear_K(ks), load), np.linalg.solve(K, load))

@@ -18,7 +18,7 @@ from scipy import signal
 
 # channel kinds and their conditioner (orders differ between conditioner types; the input
 # of a shake-table test comes from the table controller's own feedback accelerometer)
-ORDERS = {"acc": (4, 8), "lvdt": (2, 4), "input": (2, 6), "force": (4, 8), "base": (4, 8)}
+ORDERS = {"acc": (4, 8), "lvdt": (2, 4), "input": (4, 6), "force": (4, 8), "base": (4, 8)}
 CALIBRATION = (0.01, 0.03)   # |relative gain error| of each channel (docs/benchmarks/lab_generator.md)
 CORNER = (0.36, 0.44)        # anti-alias corner / recording rate
 DELAY_MS = (0.0, 0.5)        # per-channel delay [ms]: scan skew and unmodelled group delay

@@ -178,3 +178,12 @@ def eccentric_model(m, kx, ky, plan, e, frame_pos):
             d = np.array([-1.0, 1.0])
             K += k[j] * T.T @ np.outer(d, d) @ T
     return M, K
+
+
+def story_k_from_load(K, load):
+    """Story stiffnesses V_j / (u_j - u_(j-1)) of a frame under a static lateral load
+    (u = K^-1 load, V_j = the load at and above floor j): the shear-frame stiffnesses a
+    designer reads off a lateral-load analysis of the nominal frame."""
+    u = np.linalg.solve(K, load)
+    V = np.cumsum(load[::-1])[::-1]
+    return V / np.diff(np.concatenate([[0.0], u]))

@@ -10,7 +10,7 @@ sensors measure (`out`: floor x-motion at the sensor, `r`: the table's influence
 import numpy as np
 
 from nlp.testing.lab.frames import (beam_EI_for_rho, eccentric_model, lateral_K, lateral_K_opensees,
-                                    muto_story_k)
+                                    story_k_from_load)
 
 RHO = (0.5, 5.0)              # beam-column stiffness ratio of the flexible-beam frames
 ECCENTRICITY = (0.03, 0.15)   # mass eccentricity / plan dimension
@@ -45,14 +45,17 @@ def frame_K(EI_c, EI_b, h, L):
 
 def flexible_frame(rng, n, rho):
     """A one-bay plane frame of n storeys with beam-column ratio rho. Design: the nominal
-    masses and Muto story stiffnesses; real: column EI +-10 %, masses +-5 %, the full
-    condensed K. Rayleigh damping 1-2.5 %."""
+    masses and the story stiffnesses of the nominal frame under a lateral load; real:
+    column and beam EI +-10 %, masses +-5 %, the full condensed K. Rayleigh damping 1-2.5 %."""
     h, L = 1.0, float(rng.uniform(1.0, 2.0))
     k_target = rng.uniform(1500.0, 6000.0, n)           # stiffness of the rigid-beam story
     EI_c_design = k_target * h**3 / 24.0
     EI_b_design = beam_EI_for_rho(rho, EI_c_design, h, L)
     m_design = rng.uniform(3.0, 8.0, n).round(2)
-    k_design = muto_story_k(EI_c_design, EI_b_design, h, L).round(0)
+    # design: the nominal frame's story stiffnesses under an inverted-triangle load (the
+    # first-mode-like pattern of a lateral-load analysis), i.e. exact for that load shape
+    k_design = story_k_from_load(frame_K(EI_c_design, EI_b_design, h, L)[0],
+                                 m_design * np.arange(1, n + 1)).round(0)
     EI_c = EI_c_design * (1 + rng.uniform(-0.1, 0.1, n))
     EI_b = EI_b_design * (1 + rng.uniform(-0.1, 0.1, n))
     m = m_design * (1 + rng.uniform(-0.05, 0.05, n))
