@@ -4,7 +4,7 @@ analytic low-pass x delay response, and the gains' ratio in an estimated FRF."""
 import numpy as np
 from scipy import signal
 
-from nlp.testing.lab.chain import apply_chain, chain_frf, delay, draw_chain
+from nlp.testing.lab.chain import apply_chain, chain_frf, delay, draw_chain, draw_orders
 
 FS = 2000.0
 
@@ -64,8 +64,10 @@ def test_the_calibration_factors_appear_in_H_as_their_ratio():
 
 def test_drawn_chains_stay_in_the_stated_ranges_and_differ_between_channels():
     rng = np.random.default_rng(0)
-    chains = [draw_chain(rng, name, 100.0) for name in ("input", "acc1", "acc2", "lvdt1")]
+    orders = draw_orders(rng)
+    chains = [draw_chain(rng, name, 100.0, orders) for name in ("input", "acc1", "acc2", "lvdt1")]
     for c in chains:
         assert 0.01 <= abs(c["gain"] - 1) <= 0.03
         assert 36.0 <= c["corner_hz"] <= 44.0 and 0.0 <= c["delay_s"] <= 0.5e-3
     assert len({round(c["corner_hz"], 6) for c in chains}) == len(chains)
+    assert chains[1]["order"] == chains[2]["order"] == orders["acc"]     # one conditioner type

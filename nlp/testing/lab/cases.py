@@ -11,7 +11,7 @@ from nlp.testing.blind.cases import describe_test, real_system
 from nlp.testing.blind.experiment import SIM_FACTOR, drive, write_csv
 from nlp.testing.blind.recipe import case_yaml
 from nlp.testing.blind.structures import FAMILIES, SIZES, real_structure
-from nlp.testing.lab.chain import draw_chain
+from nlp.testing.lab.chain import draw_chain, draw_orders
 from nlp.testing.lab.experiment import simulate, record
 from nlp.testing.lab.links import (OUTSIDE, OUTSIDE_SIZES, crack, family_nonlinearity, friction,
                                    joints, sliding_mass)
@@ -31,7 +31,8 @@ VERDICTS = {"null_lab": ["adequate", "setup_error"],
 def draw_lab(rng, test, st, names):
     """Every channel's chain, the noise, and the table or shaker of this test."""
     force = test["excitation"] == "force"
-    lab = {"chains": {k: draw_chain(rng, k, test["fs"], force_input=force) for k in names},
+    orders = draw_orders(rng)
+    lab = {"chains": {k: draw_chain(rng, k, test["fs"], orders, force_input=force) for k in names},
            "noise": {"common": float(rng.uniform(*COMMON)), "pink": float(rng.uniform(*PINK)),
                      "level": {k: float(rng.uniform(*LEVEL)) for k in names}}}
     if force:

@@ -32,13 +32,18 @@ def kind_of(name):
     return name if name in ORDERS else "acc"
 
 
-def draw_chain(rng, name, fs, force_input=False):
-    """One channel's chain: gain g (1 +- 1-3 %), corner f_c [Hz], order N, delay tau [s]."""
+def draw_orders(rng):
+    """One filter order per conditioner kind: channels of one kind share a conditioner type."""
+    return {k: int(rng.choice(np.arange(lo, hi + 1, 2))) for k, (lo, hi) in ORDERS.items()}
+
+
+def draw_chain(rng, name, fs, orders, force_input=False):
+    """One channel's chain: gain g (1 +- 1-3 %), its own corner f_c [Hz] (component
+    tolerances), its kind's order N, delay tau [s]."""
     kind = "force" if (name == "input" and force_input) else kind_of(name)
-    lo, hi = ORDERS[kind]
     return {"gain": float(1 + rng.choice([-1, 1]) * rng.uniform(*CALIBRATION)),
             "corner_hz": float(rng.uniform(*CORNER) * fs),
-            "order": int(rng.choice(np.arange(lo, hi + 1, 2))),
+            "order": orders[kind],
             "delay_s": float(rng.uniform(*DELAY_MS) * 1e-3)}
 
 
