@@ -16,18 +16,8 @@ import os
 
 import numpy as np
 
-from nlp.testing.blind.cases import case_name, check_case, make_case, specs
+from nlp.testing.blind.cases import case_name, case_numbers, check_case, make_case, specs
 from nlp.solve.executors.threads import limit_blas_threads
-
-
-def _selection(text, n):
-    if not text:
-        return list(range(n))
-    out = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return [k for k in out if k < n]
 
 
 def main():
@@ -50,7 +40,7 @@ def main():
     a = ap.parse_args()
     rng = np.random.default_rng(a.seed)
     all_specs = specs(rng)
-    for k in _selection(a.only, len(all_specs)):
+    for k in case_numbers(a.only, len(all_specs)):
         s = all_specs[k]
         name = case_name(k, s)
         make_case(os.path.join(a.out, name), s, a.seed * 1000 + k,

@@ -19,17 +19,8 @@ import time
 import numpy as np
 
 from nlp.testing.lab.cases import case_name, make_case, specs
+from nlp.testing.blind.cases import case_numbers
 from nlp.solve.executors.threads import limit_blas_threads
-
-
-def _selection(text, n):
-    if not text:
-        return list(range(n))
-    out = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return [k for k in out if k < n]
 
 
 def main():
@@ -46,7 +37,7 @@ def main():
     ap.add_argument("--residual", default="log_magnitude")
     a = ap.parse_args()
     all_specs = specs(np.random.default_rng(a.seed))
-    for k in _selection(a.only, len(all_specs)):
+    for k in case_numbers(a.only, len(all_specs)):
         s = all_specs[k]
         name = case_name(k, s)
         t0 = time.perf_counter()

@@ -260,3 +260,15 @@ def case_name(k, s):
     """Folder name of case k: number, families (or null/ordinary), _frf for FRF-file cases."""
     fams = "+".join(f for f, _ in s["effects"]) or ("ordinary" if s.get("ordinary") else "null")
     return f"{k:02d}_{fams}" + ("_frf" if s.get("route") == "frf_file" else "")
+
+
+def case_numbers(text, n):
+    """Case numbers from a command line's --only ("0-7", "3,17,30"; None: all of 0..n-1),
+    those below n, in the order given."""
+    if not text:
+        return list(range(n))
+    out = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out += list(range(int(lo), int(hi or lo) + 1))
+    return [k for k in out if k < n]
