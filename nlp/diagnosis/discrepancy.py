@@ -120,10 +120,11 @@ def _residue_starts(case, pr0, z0, e, idx):
     return a
 
 
-def fit_discrepancy(case, target, z_base, modes, idx):
+def fit_discrepancy(case, pr0, z_base, modes, idx):
     """The case's model plus every mode's term, fitted from the baseline's optimum z_base:
-    (problem, result). idx: the fitted points (for the residues' starts)."""
-    pr0 = diagnosis_problem(case, target, optimize=False)
+    (problem, result). pr0: the case's own model on the target; idx: the fitted points (for
+    the residues' starts)."""
+    target = pr0.target
     starts_a = [_residue_starts(case, pr0, z_base, e, idx) for e in modes]
     c_d = replace(case, discrepancy=tuple(modes))
     pr = diagnosis_problem(c_d, target, optimize=False)

@@ -257,7 +257,7 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
         + ": is each one a catalogue family's, or model discrepancy?")
     wide = points_stage(cfg, case, widen, hot, log)
     b0 = best_fit(wide.base, [base.res.z])
-    pr_d, res_d = fit_discrepancy(case, wide.target, b0.z, modes, wide.fit)
+    pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
     n_fit = wide.base.n_used
     log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
         f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
