@@ -6,10 +6,12 @@ measured data (:mod:`nlp.case.records`), the frequency selection
 """
 
 from dataclasses import dataclass, replace
+import os
 from types import SimpleNamespace
 
 import numpy as np
 
+from nlp.case.joint import common_grid, stack_tests
 from nlp.case.checks import (check_data_points, check_free_parameters, check_frf_alive,
                              check_start_residuals, check_total_mass)
 from nlp.case.model import case_model, dof_index, ground_vector, groups_cover
@@ -31,7 +33,7 @@ from nlp.solve.identify import SCALE_EXPLANATION, scale_null_space
 from nlp.solve.problem import (PREFIT_MAX_ITER, Channel, SolverConfig, Target, UpdatingProblem,
                                prefit_residual)
 
-__all__ = ["Case", "assemble", "build_problem", "reduced_error"]
+__all__ = ["Case", "assemble", "single_tests", "joint_case", "build_problem", "reduced_error"]
 
 
 @dataclass(frozen=True)
@@ -62,8 +64,47 @@ def assemble(cfg, channels=None, data_file=None):
     """Model, damping, parameters and selected data for a validated case.
 
     channels : names of the channels to use (default all); data_file : read
-    another test of the same structure instead of ``data.file``.
+    another test of the same structure instead of ``data.file`` (that test alone).
+    A case with data.tests holds every test's channels (:mod:`nlp.case.joint`).
     """
+    if cfg.data.tests and data_file is None:
+        return joint_case(cfg, channels)
+    return _one_test(cfg, channels, data_file)
+
+
+def single_tests(cfg):
+    """[(label, config, data file)] of each test of a case, each to be assembled alone:
+    data.file first, then data.tests (with its shaker floor)."""
+    plain = replace(cfg, data=replace(cfg.data, tests=()))
+    out = [(os.path.splitext(os.path.basename(cfg.data.file))[0], plain, None)]
+    for i, t in enumerate(cfg.data.tests):
+        c = plain
+        if t.force_floor is not None:
+            if cfg.excitation.type != "force":
+                raise InputError(cfg.path, f"data.tests[{i}].force_floor",
+                                 "only with force excitation (excitation.type force)",
+                                 t.force_floor)
+            c = replace(plain, excitation=replace(cfg.excitation, floor=t.force_floor,
+                                                  node=None, dof=None))
+        out.append((t.label, c, t.file))
+    return out
+
+
+def joint_case(cfg, channels=None):
+    """The stacked case of every test of the structure (:func:`nlp.case.joint.stack_tests`)."""
+    if choose_backend(cfg.model.frf_backend, case_model(cfg).n) != "dense":
+        raise InputError(cfg.path, "data.tests", "a model for the dense backend (tests fitted "
+                         "jointly are not carried by the sparse and reduced backends yet)")
+    tests = single_tests(cfg)
+    cases = [_one_test(c, None, path) for _, c, path in tests]
+    grid = common_grid([c.f for c in cases])
+    if grid is None:
+        raise InputError(cfg.path, "data.tests", "FRF files on the frequency grid of data.file")
+    return stack_tests(cfg, cases, [lab for lab, _, _ in tests], grid[1], grid[0], channels)
+
+
+def _one_test(cfg, channels=None, data_file=None):
+    """The case of one test (:func:`assemble`)."""
     model = case_model(cfg)
     f, H, coherence, records, n_avg, quality = read_data(cfg, data_file)
     ex = cfg.excitation

@@ -8,7 +8,7 @@ from scipy.signal import get_window
 from nlp.case.reader import file_list, location, scale_sign
 from nlp.case.schema import (CHANNEL_QUANTITIES, DATA_FORMATS, DATA_TYPES, DB_FORMATS,
                              ESTIMATORS, INPUT_QUANTITIES, OUTPUTS, ChannelConfig, DataConfig,
-                             ScreenConfig)
+                             ScreenConfig, OtherTest)
 from nlp.frf.forms import OUTPUT_OF_QUANTITY
 
 __all__ = ["data_section"]
@@ -19,7 +19,7 @@ def data_section(rd, d, base):
     absolute against ``base``, the case file's folder."""
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
-                              "validation_force_floor", "level_files", "db_reference", "records",
+                              "validation_force_floor", "level_files", "tests", "db_reference", "records",
                               "columns", "skip_rows", "time_column", "fs", "screen"})
     kind = rd.choice(d, "type", "data.type", DATA_TYPES, DataConfig.type)
     records = kind == "time_histories"
@@ -34,6 +34,7 @@ def data_section(rd, d, base):
     vfloor = rd.number(d, "validation_force_floor", "data.validation_force_floor", None,
                        positive=True, integer=True)
     level_paths = file_list(rd, d.get("level_files") or [], "data.level_files", base)
+    tests = _joint_tests(rd, d, base, kind, f)
     dbref = rd.number(d, "db_reference", "data.db_reference", DataConfig.db_reference,
                        positive=True)
     if "db_reference" in d and fmt not in DB_FORMATS:
@@ -44,7 +45,7 @@ def data_section(rd, d, base):
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "boxcar" if nperseg == "all" else DataConfig.window)),
                       validation_file=val,
-                      validation_force_floor=vfloor, level_files=tuple(level_paths),
+                      validation_force_floor=vfloor, level_files=tuple(level_paths), tests=tests,
                       db_reference=dbref, records=tuple(rec_paths), **layout)
 
 
@@ -64,6 +65,39 @@ def _data_files(rd, d, base, records):
         if not os.path.isfile(val):
             raise rd.err("data.validation_file", "an existing file", d["validation_file"])
     return f, rec_paths, val
+
+
+def _joint_tests(rd, d, base, kind, main_file):
+    """data.tests: other FRF files of the same structure and sensors, fitted jointly."""
+    v = d.get("tests")
+    if v is None:
+        return ()
+    if not isinstance(v, list) or not v:
+        raise rd.err("data.tests", "a list of {file, force_floor, label} (other tests of the "
+                     "same structure, fitted jointly)", v)
+    if kind != "frf":
+        raise rd.err("data.tests", "only with FRF files (data.type frf)", kind)
+    out, labels = [], {os.path.splitext(os.path.basename(main_file))[0]}
+    for i, t in enumerate(v):
+        key = f"data.tests[{i}]"
+        if not isinstance(t, dict):
+            raise rd.err(key, "a mapping {file, force_floor, label}", v[i])
+        rd.check_keys(t, key, {"file", "force_floor", "label"})
+        if not isinstance(t.get("file"), str):
+            raise rd.err(f"{key}.file", "the FRF file's name (relative to the case file)",
+                         t.get("file"))
+        p = os.path.join(base, t["file"])
+        if not os.path.isfile(p):
+            raise rd.err(f"{key}.file", "an existing file (relative to the case file)", t["file"])
+        floor = rd.number(t, "force_floor", f"{key}.force_floor", None, positive=True,
+                          integer=True)
+        label = str(t.get("label") or os.path.splitext(os.path.basename(p))[0])
+        if label in labels or not label.replace("_", "").replace("-", "").isalnum():
+            raise rd.err(f"{key}.label", "a name of letters, digits, - and _ that no other "
+                         "test of the case has", label)
+        labels.add(label)
+        out.append(OtherTest(file=p, force_floor=floor, label=label))
+    return tuple(out)
 
 
 def _record_input(rd, d):

@@ -120,6 +120,14 @@ class ScreenConfig:
 
 
 @dataclass(frozen=True)
+class OtherTest:
+    """Another test of the same structure fitted jointly with data.file (data.tests[])."""
+    file: str                              # (required) FRF file, same layout and sensors as data.file
+    force_floor: int = None                # its shaker floor (force input; default: excitation.floor)
+    label: str = None                      # name in reports and channel names (default: file stem)
+
+
+@dataclass(frozen=True)
 class DataConfig:
     file: str                              # (required unless records) data file, relative to the case
     format: str = "auto"                   # auto | npz | complex | magphase | db | magnitude | db_magnitude
@@ -134,6 +142,7 @@ class DataConfig:
     validation_file: str = None            # another test of the same structure (held out)
     validation_force_floor: int = None     # its shaker floor, when it differs (force input)
     level_files: tuple = ()                # the same test at other excitation levels
+    tests: tuple = ()                      # other tests of the structure fitted jointly: list of {file, force_floor, label} (same sensors and grid)
     db_reference: float = 1.0              # |H| that 0 dB stands for, in the file's FRF unit
     records: tuple = ()                    # time histories: several records averaged (abs. paths)
     columns: tuple = None                  # names of a headerless text file's columns

@@ -29,9 +29,11 @@ def candidates(case):
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
     out += [HystereticDamping()] + [HystereticDamping(s) for s in range(1, n + 1)]
     out += [NonadjacentCoupling(i, j) for i in range(1, n + 1) for j in range(i + 2, n + 1)]
-    out += [SensorGain(ch.name) for ch in case.channels]
+    # one per sensor: tests fitted jointly share their sensors (nlp.case.joint)
+    sensors = list(dict.fromkeys(ch.sensor_name for ch in case.channels))
+    out += [SensorGain(s) for s in sensors]
     if case.config.objective.residual == "complex":
-        out += [SensorDelay(ch.name) for ch in case.channels]
+        out += [SensorDelay(s) for s in sensors]
     return out
 
 

@@ -43,12 +43,13 @@ from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence,
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
 from nlp.diagnosis.inside import inside_model_class
+from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
 from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
-from nlp.diagnosis.screen import screen, setup_error_result
+from nlp.diagnosis.screen import screen_tests, setup_error_result
 from nlp.diagnosis.spread import chi2_spread
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
 from nlp.diagnosis.widen import WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak
@@ -174,7 +175,7 @@ def screen_stage(case, out, log):
     data gets the verdict setup_error, written to out/diagnosis.json; otherwise
     {"verdict": None, "report": the screening} for the diagnosis to carry."""
     advance("diagnose", "screen")
-    report = screen(case)
+    report = screen_tests(case)
     for w in report["warnings"]:
         log(f"screening: {w['message']}")
     if not report["setup_errors"]:
@@ -302,7 +303,8 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
     if level_bound:
         return sel, base
     others = setup_others(cfg, case.discrepancy)
-    sel.reciprocity = reciprocal_pairs(case, others, points.fit)
+    sel.reciprocity = reciprocity_of_tests(cfg, case.f[points.fit]) if cfg.data.tests else \
+        reciprocal_pairs(case, others, points.fit)
     for pr in sel.reciprocity:
         log(f"reciprocity with {pr['test']}: gain of {pr['channel_q']} over {pr['channel_p']} "
             f"{math.exp(pr['ln_ratio']):.3f} +- {100 * pr['se']:.1f} % (model-free, "
@@ -470,7 +472,11 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
             inside["findings"] += loss["findings"]
     consistency, unconfirmed = _final_records(sel)
     whole = whole_band(case, points.base, base.res.z, state["problem"], state["z"], points.fit)
-    return Checks(inside, phase, loss, whole, consistency, unconfirmed)
+    alone = []
+    if cfg.data.tests and sel.found:
+        log("each test alone, with the joint findings:")
+        alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log)
+    return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone)
 
 
 def _final_records(sel):

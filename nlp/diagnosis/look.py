@@ -81,6 +81,7 @@ class Checks:
     whole: Optional[dict]
     consistency: list
     unconfirmed: list
+    tests_alone: list = field(default_factory=list)   # joint diagnoses (nlp.diagnosis.joint)
 
 
 @dataclass

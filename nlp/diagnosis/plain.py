@@ -117,6 +117,7 @@ def paragraph(d, refs=None):
                      + ": likely out-of-plane, torsional or local modes. They are kept in the "
                      "fit as model discrepancy, so no finding above is accepted for absorbing "
                      "them.")
+    parts.append(_alone_words(d.get("tests_alone") or []))
     extra = d.get("extra_modes") or []
     if extra:
         parts.append("The data also show resonances the model does not have, at "
@@ -124,6 +125,35 @@ def paragraph(d, refs=None):
     if verdict == "ambiguous" and d.get("suggested_measurements"):
         parts.append("The suggested measurements below would tell the candidates apart.")
     return " ".join(p for p in parts if p)
+
+
+def _alone_words(alone):
+    """How the tests, each fitted alone, bear out the joint findings (nlp.diagnosis.joint)."""
+    if not alone:
+        return ""
+    tests = list(dict.fromkeys(r["test"] for r in alone))
+    bad = [r for r in alone if not r["agrees"]]
+    head = f"The findings come from the {len(tests)} tests fitted jointly ({_join(tests)})"
+    if not bad:
+        return head + "; each test fitted alone agrees with every one of them."
+    return head + "; fitted alone, " + "; ".join(
+        f"{r['test']} {'cannot see' if 'cannot see' in r['reason'] else 'disagrees on'} the "
+        f"{finding_title(r).lower()}" for r in bad) + " (see the table of each test alone)."
+
+
+def alone_rows(d, refs=None):
+    """Rows (test, finding, its value alone, its value jointly, what the test says) of the
+    joint findings on each test alone."""
+    rows = []
+    for r in d.get("tests_alone") or []:
+        alone = {"physics": r["physics"], "parameters": r["alone"],
+                 "uncertainty": r["alone_uncertainty"]}
+        joint = {"physics": r["physics"], "parameters": r["joint"],
+                 "uncertainty": r["joint_uncertainty"]}
+        rows.append([r["test"], finding_title(r), "; ".join(finding_values(alone, refs)),
+                     "; ".join(finding_values(joint, refs)),
+                     "agrees" if r["agrees"] else r["reason"]])
+    return rows
 
 
 def _left_words(left):

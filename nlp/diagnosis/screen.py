@@ -43,6 +43,7 @@ that nlp/quality.py found when the records were read are reported as warnings.
 import numpy as np
 from scipy import linalg, signal
 
+from nlp.case.assemble import assemble, single_tests
 from nlp.case.selection import detection_form
 
 __all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swap_test"]
@@ -257,6 +258,22 @@ def screen(case):
         for item in check(case):
             (errors if item.get("severity") == "error" else warnings).append(item)
     return {"setup_errors": errors, "warnings": warnings, "checks": checks}
+
+
+def screen_tests(case):
+    """:func:`screen` of a case; tests fitted jointly (data.tests) are screened one by one,
+    as each has its own driving point, and their messages name the test."""
+    cfg = case.config
+    if not cfg.data.tests:
+        return screen(case)
+    out = {"setup_errors": [], "warnings": [], "checks": {}}
+    for label, c_cfg, path in single_tests(cfg):
+        rep = screen(assemble(c_cfg, data_file=path))
+        for kind in ("setup_errors", "warnings"):
+            out[kind] += [dict(x, test=label, message=f"{label}: {x['message']}")
+                          for x in rep[kind]]
+        out["checks"][label] = rep["checks"]
+    return out
 
 
 def _sign_checks(case, D, peaks, names, floors, errors, warnings, checks):

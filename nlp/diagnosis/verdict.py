@@ -311,6 +311,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "unresolved_better": [dict(public(r), instead_of=r["instead_of"])
                                     for r in sel.unresolved],
               "consistency": checks.consistency,
+              "tests_alone": checks.tests_alone,
               "absorbed": inside["absorbed"],
               "parameter_changes": inside["parameter_changes"],
               "fitted_parameters": inside["parameters"],

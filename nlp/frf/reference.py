@@ -238,7 +238,8 @@ def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, 
 
     r : ground influence vector (default all ones). A channel on the base
     (``dof == BASE_DOF``) of this fixed-base model moves with the ground: its
-    absolute accelerance is 1 (relative outputs are 0).
+    absolute accelerance is 1 (relative outputs are 0). A channel's own ``force_dof``
+    (tests fitted jointly) replaces force_dof.
     """
     out = {}
     rows = []
@@ -247,8 +248,9 @@ def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, 
             rows.append(np.full(np.size(omega), 1.0 if ch.output == "absolute_accelerance" else 0.0,
                                 dtype=complex))
             continue
-        if ch.output not in out:
-            out[ch.output] = frf_dynamic_stiffness(M, C, K, omega, excitation, force_dof, ch.output,
-                                                   r)
-        rows.append(out[ch.output][ch.dof])
+        p = getattr(ch, "force_dof", None)
+        p = force_dof if p is None else p
+        if (ch.output, p) not in out:
+            out[ch.output, p] = frf_dynamic_stiffness(M, C, K, omega, excitation, p, ch.output, r)
+        rows.append(out[ch.output, p][ch.dof])
     return np.array(rows)

@@ -17,7 +17,8 @@ import json
 import os
 
 from nlp import __version__
-from nlp.diagnosis.plain import (REFERENCES, finding_note, finding_title, finding_values,
+from nlp.diagnosis.plain import (REFERENCES, alone_rows, finding_note, finding_title,
+                                 finding_values,
                                  hypotheses, other_statements, paragraph, unconfirmed_lines)
 from nlp.errors import InputError
 from nlp.output.results import write_atomic
@@ -355,6 +356,10 @@ def _diagnosis_report(out):
         parts += [f"<p>{html.escape(n)}</p>" for n in map(finding_note, d["findings"]) if n]
     parts += ["<h2>In plain words</h2>", f"<p>{html.escape(paragraph(d, refs))}</p>"]
     parts += _discrepancy_section(d)
+    if d.get("tests_alone"):
+        parts += ["<h2>Each test alone, with the joint findings</h2>",
+                  _table(["test", "finding", "fitted on this test alone", "joint fit",
+                          "this test"], alone_rows(d, refs), "text")]
     parts += _items("Also seen", other_statements(d))
     parts += _items("Not confirmed by the other tests", unconfirmed_lines(d, refs))
     parts += _items("What the updated parameters may have absorbed (hypotheses)", hypotheses(d),

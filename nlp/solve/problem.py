@@ -69,11 +69,22 @@ class Channel:
 
     ``dof == BASE_DOF`` (-1): a sensor on the base (floor 0). For a rigid base
     its absolute acceleration is the ground input (absolute accelerance 1);
-    with a ``base_flexibility`` enrichment it is the base DOF's."""
+    with a ``base_flexibility`` enrichment it is the base DOF's.
+
+    Several tests fitted jointly (data.tests) stack their channels: ``force_dof`` is then
+    the channel's own test's driven DOF (None: the target's), and ``sensor`` the physical
+    sensor's name (None: ``name``), which the sensor families (gain, delay) attach to, so
+    one sensor has one gain in every test."""
 
     name: str
     dof: int
     output: str = "receptance"
+    sensor: str = None
+    force_dof: int = None
+
+    @property
+    def sensor_name(self):
+        return self.name if self.sensor is None else self.sensor
 
 
 @dataclass(frozen=True)

@@ -125,31 +125,37 @@ class _OnChannel:
         return self.e.output_on(self.channel, hr, hi, w, th)
 
 
-def load_vector(target, Ma, n):
+def load_vector(target, Ma, n, force_dof=None):
     """Right-hand side b: -M r for ground motion (Eqn 16, r the influence vector on the
-    model's n DOFs, 0 on appended ones), a unit force at ``force_dof`` otherwise."""
+    model's n DOFs, 0 on appended ones), a unit force at ``force_dof`` (default the
+    target's) otherwise."""
     if target.excitation == "ground":
         r = ca.DM.ones(Ma.shape[0]) if target.ground_r is None else \
             ca.vertcat(ca.DM(target.ground_r), ca.DM.zeros(Ma.shape[0] - n))
         return -ca.mtimes(Ma, r)  # Eqn 16, with r for models with several DOFs per node
     b = ca.DM.zeros(Ma.shape[0])
-    b[target.force_dof] = 1
+    b[target.force_dof if force_dof is None else force_dof] = 1
     return b
 
 
-def _channel_outputs(channels, Ma, Ca, Ka, kh, b, sensor, base_dof, wv):
-    """Every channel's FRF (real, imaginary parts) at the frequency wv."""
+def _channel_outputs(channels, Ma, Ca, Ka, kh, load, sensor, base_dof, wv):
+    """Every channel's FRF (real, imaginary parts) at the frequency wv; load(force_dof) is
+    the right-hand side of a channel's test."""
     cache, o_r, o_i = {}, [], []
     for ch in channels:
-        if ch.output not in cache:
-            cache[ch.output] = frf_symbolic(Ma, Ca, Ka, wv, b, ch.output, kh)
+        key = (ch.output, ch.force_dof)
+        if key not in cache:
+            cache[key] = frf_symbolic(Ma, Ca, Ka, wv, load(ch.force_dof), ch.output, kh)
         if ch.dof == BASE_DOF and base_dof is None:  # rigid base: the ground's
             hr = ca.SX(1.0 if ch.output == "absolute_accelerance" else 0.0)
             hi = ca.SX(0.0)
         else:
             row = base_dof if ch.dof == BASE_DOF else ch.dof
-            hr, hi = cache[ch.output][0][row], cache[ch.output][1][row]
-        for e, th_e in sensor.get(ch.name, ()):
+            hr, hi = cache[key][0][row], cache[key][1][row]
+        terms = sensor.get(ch.sensor_name, [])
+        if ch.sensor_name != ch.name:   # a joint test's channel: its own terms too
+            terms = terms + sensor.get(ch.name, [])
+        for e, th_e in terms:
             hr, hi = e.output(hr, hi, wv, th_e)
         o_r.append(hr)
         o_i.append(hi)
@@ -195,11 +201,17 @@ def frequency_functions(model, damping, params, target, residual, enrichments=()
     matrices_fn = ca.Function("matrices", [z], [M, K, C], ["z"], ["M", "K", "C"])
     Ma, Ka, Ca, Kh = (system[k] for k in ("M", "K", "C", "Kh"))
     system_fn = ca.Function("system", [z], [Ma, Ka, Ca], ["z"], ["M", "K", "C"])
-    b = load_vector(target, Ma, model.n)
+    loads = {}
+
+    def load(force_dof):
+        if force_dof not in loads:
+            loads[force_dof] = load_vector(target, Ma, model.n, force_dof)
+        return loads[force_dof]
+
     kh = Kh if enrichments else None
 
     def outputs(wv):
-        return _channel_outputs(target.channels, Ma, Ca, Ka, kh, b, sensor, base_dof, wv)
+        return _channel_outputs(target.channels, Ma, Ca, Ka, kh, load, sensor, base_dof, wv)
 
     out_r, out_i = _estimated_outputs(outputs, target.kernel, w, n_ch)
     r = _residual_terms(residual, n_ch, out_r, out_i, yr, yi, s, wt)
