@@ -84,7 +84,7 @@ def plot_frf_overlays(out_dir, case, initial, updated):
         a1.plot(f_sel, _db(tg.H[c]), ".", color="k", ms=3, label="points fitted")
         a1.set_ylabel(f"magnitude [dB re 1 {'(ratio)' if unit == '-' else unit}]")
         where = ("input: ground acceleration" if tg.excitation == "ground"
-                 else f"input: force at DOF {tg.force_dof + 1}")
+                 else f"input: force at DOF {(tg.force_dof if ch.force_dof is None else ch.force_dof) + 1}")
         a1.set_title(f"{ch.name}: {words}\nresponse at DOF {ch.dof + 1}, {where}", fontsize=10)
         a1.legend(loc="best", fontsize=8)
         a1.grid(alpha=0.3)

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from nlp.case.joint import label_of
 from nlp.case.assemble import assemble, build_problem
 from nlp.case.selection import detection_form, detection_noise
 from nlp.solve.checkpoint import Checkpoint, checkpoint_path
@@ -129,10 +130,13 @@ def _modes_of(model, case):
     """Peak-picked modes of the measured FRFs against the model (frequency, damping, MAC)."""
     M, K, C = model
     fc = case.config.frequencies
-    det = detection_form(case.f, case.H, case.channels, case.target.excitation)
+    # a shape is read from one driving point: tests fitted jointly give their first test's
+    rows = [i for i, ch in enumerate(case.channels) if label_of(ch) == ""]
+    chans, H = tuple(case.channels[i] for i in rows), case.H[rows]
+    det = detection_form(case.f, H, chans, case.target.excitation)
     sigma = None if case.noise is None else \
-        detection_noise(case.f, case.H, det, case.channels, case.noise.detect)
-    return compare_modes(M, C, K, case.f, case.H, case.channels, detection=det,
+        detection_noise(case.f, H, det, chans, case.noise.detect[rows])
+    return compare_modes(M, C, K, case.f, H, chans, detection=det,
                          fmin=fc.fmin, fmax=fc.fmax, phase=case.has_phase, sigma=sigma)
 
 
