@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from nlp.diagnosis.evidence import undetermined
+from nlp.diagnosis.evidence import BIC_ACCEPT, undetermined
 from nlp.diagnosis.fitting import case_references
 from nlp.diagnosis.refit import refit
 
@@ -120,8 +120,9 @@ def _why(r):
         return r["why_not"]
     if r["at_bound"]:
         return "a parameter lies on its bound"
-    return (f"its scaled BIC change {r['delta_bic']:.1f} or its held-out chi-square "
-            f"{r['held_out']:.2f} no longer passes")
+    if r["delta_bic"] > -BIC_ACCEPT:
+        return f"its scaled BIC change {r['delta_bic']:.1f} is above -{BIC_ACCEPT:g}"
+    return f"its held-out chi-square {r['held_out']:.2f} fails the held-out test"
 
 
 def hold_open_nuisance(results, judge, job, log=print):

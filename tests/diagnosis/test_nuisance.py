@@ -176,13 +176,15 @@ def _held_refit(chi2, mu_se=0.005):
 
 def test_a_finding_that_fails_with_its_nuisance_held_is_refused_with_the_reason():
     """The same rules judge the held refit: a refit whose chi-square drop falls under 9
-    (scaled) once the damping is held is refused, its reason naming what was held; one
+    (scaled) once the damping is held is refused, its reason naming what was held; so is
+    one whose scaled BIC change (a drop of 20 over phi less 2 ln n) is above -10; one
     whose mass ratio error then exceeds its value is refused for that; one that still
     passes is accepted with the damping held. A determined damping is never held."""
     def judge(rs):
         return decide(rs, 3000.0, 6.0, 1700, 1771)
 
     for chi2, mu_se, ok, why in ((2000.0, 0.005, True, ""),
+                                 (2965.0, 0.005, False, "scaled BIC change"),
                                  (2995.0, 0.005, False, "chi-square drop"),
                                  (2000.0, 0.08, False, "mu4 = 0.05 has a standard error")):
         results = [_appendage(0.0245, 0.11)]
