@@ -4,7 +4,7 @@ An appendage's damping ratio and a flexible base's mass and dashpot shape a reso
 without measuring the effect (nlp.diagnosis.evidence.NUISANCE). When one of them has a
 standard error above its value, its estimate is noise, and so is every number that traded
 against it. Such a candidate is refitted with those parameters held at a stated physical
-reference (REFERENCE) and judged again on that refit by the same rules (scaled BIC,
+reference (:func:`reference`) and judged again on that refit by the same rules (scaled BIC,
 significance, held-out test). It is accepted only if it still passes; its report then lists
 the held parameter as an assumption, never as an estimate.
 """
@@ -17,15 +17,8 @@ from nlp.diagnosis.evidence import BIC_ACCEPT, undetermined
 from nlp.diagnosis.fitting import case_references
 from nlp.diagnosis.refit import refit
 
-__all__ = ["Held", "REFERENCE", "reference", "hold", "open_nuisance", "settle",
+__all__ = ["Held", "reference", "hold", "open_nuisance", "settle",
            "hold_open_nuisance"]
-
-# Where a held parameter is set: the family's own start (spec(refs)["initial"]), a physical
-# reference, not a fitted value. An appendage's damping ratio 0.02 (light structural
-# damping), a base of half the mean floor mass, a base dashpot of the reference damping
-# c_ref (the mean diagonal of the case's damping matrix).
-REFERENCE = "the family's reference value"
-
 
 @dataclass(frozen=True)
 class Held:
@@ -89,7 +82,10 @@ class Held:
 
 
 def reference(e, names, refs):
-    """{name: value}: the value each of e's parameters `names` is held at (REFERENCE)."""
+    """{name: value}: the value each of e's parameters `names` is held at, the family's own
+    start (spec(refs)["initial"]): a stated physical reference, not a fitted value. An
+    appendage's damping ratio 0.02 (light structural damping), a base of half the mean floor
+    mass, a base dashpot of c_ref (the mean diagonal of the case's damping matrix)."""
     sp = e.spec(refs)
     return {n: float(v) for n, v in zip(e.names, sp["initial"]) if n in names}
 
