@@ -46,6 +46,7 @@ from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
+from nlp.diagnosis.nuisance import hold_open_nuisance
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
 from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
@@ -389,8 +390,10 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
     other tests, best first."""
     state = sel.state
     k_cur = state["problem"].params.n_z - points.base.params.n_z
-    sel.phis.append(decide(results, state["chi"], state["held"], base.nu - k_cur, base.n_fit,
-                           n_held=points.held.size * len(case.channels)))
+    sel.phis.append(hold_open_nuisance(results, lambda rs: decide(
+        rs, state["chi"], state["held"], base.nu - k_cur, base.n_fit,
+        n_held=points.held.size * len(case.channels)), (case, points.target, state["current"],
+        state["z"], base.n_fit, points.held, points.sig_held), log))
     for r in results:
         log(f"  [{rnd + 1}] {r['physics']} {r['location']}: score {r['score']:.1f}, "
             f"dBIC {r['delta_bic']:.1f} (phi {r['phi']:.2f}), held-out {r['held_out']:.2f}"

@@ -9,8 +9,8 @@ updated parameters may have absorbed, worded as hypotheses.
 
 from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
 
-__all__ = ["finding_title", "finding_values", "finding_line", "paragraph", "hypotheses",
-           "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES", "REST_HEAD"]
+__all__ = ["finding_title", "finding_values", "held_words", "finding_line", "paragraph",
+           "hypotheses", "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES", "REST_HEAD"]
 
 REFERENCES = "references.json"   # beside diagnosis.json: the families' reference magnitudes
 # statements of verdict.py that the paragraph says in its own words (not repeated)
@@ -37,7 +37,21 @@ def finding_values(f, refs=None):
     if f.get("not_determined"):
         vals.append("not determined by the data: " + ", ".join(
             f"{quantity(f.get('physics'), n, 0.0).label} ({n})" for n in f["not_determined"]))
+    vals += held_words(f.get("physics"), f.get("held") or {}, labels=True)
     return vals
+
+
+def held_words(physics, held, labels=False):
+    """'zeta_s4 held at 2 % (assumed: the data do not determine it)' for each parameter a
+    finding holds at its reference value (nlp.diagnosis.nuisance): an assumption, never an
+    estimate, so no error is given."""
+    out = []
+    for n, v in held.items():
+        q = quantity(physics, n, float(v))
+        head = f"{q.label} {q.symbol}" if labels else n
+        out.append(f"{head} held at {fmt_sig(q.value)}{' ' + q.unit if q.unit else ''} "
+                   "(assumed: the data do not determine it)")
+    return out
 
 
 def finding_note(f):

@@ -12,9 +12,9 @@ from nlp.diagnosis.discrepancy import described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.look import Conclusion
-from nlp.diagnosis.plain import finding_line, finding_title, finding_values, hypotheses, \
-    other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, REFERENCES, \
-    REFIT_STATEMENT, REMAINING, REST_HEAD
+from nlp.diagnosis.plain import finding_line, finding_title, finding_values, held_words, \
+    hypotheses, other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, \
+    REFERENCES, REFIT_STATEMENT, REMAINING, REST_HEAD
 from nlp.diagnosis.plots import plot_diagnosis
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.provenance import provenance
@@ -65,6 +65,8 @@ def statement(r):
                      for k, v in r["parameters"].items())
     if r.get("not_determined"):
         pars += "; not determined by the data: " + ", ".join(r["not_determined"])
+    if r.get("held"):
+        pars += "; " + "; ".join(held_words(r["physics"], r["held"]))
     return f"{REFIT_STATEMENT}{WORDS[r['physics']]} {where} ({pars})."
 
 
@@ -79,6 +81,9 @@ def public(r):
         d["parameters"] = {n: v for n, v in r["parameters"].items() if n not in open_}
         d["uncertainty"] = {n: v for n, v in r["uncertainty"].items() if n not in open_}
         d["not_determined"] = open_
+    if r.get("held"):
+        # an assumption, not an estimate: no error (nlp.diagnosis.nuisance)
+        d["held"] = dict(r["held"])
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
                      "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
                      "raw_delta_chi2": r.get("raw_delta_chi2"),
