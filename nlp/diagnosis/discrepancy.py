@@ -26,6 +26,7 @@ from scipy.linalg import eigh
 from scipy.signal import find_peaks
 from scipy.stats import chi2 as chi2_dist
 
+from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.case.selection import detection_form, selectable
 from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL
 from nlp.diagnosis.checks import whole_band
@@ -197,3 +198,22 @@ def described(pr, z, modes):
                                   "or local mode, or a subsystem outside the model): kept in every "
                                   "fit as model discrepancy, not named as a finding.")})
     return out
+
+
+def refute_in_discrepancy(discrepancy, results, log):
+    """Refuse accepted appendages whose resonance lies in the window of a model-discrepancy
+    mode (within HOT_WINDOW of its frequency). The discrepancy stage offered an appendage at
+    every floor for that resonance and none explained it as well as a free modal term, so
+    an appendage tuned there takes up what the modal term leaves (its real residue, a
+    neighbouring mode of the same origin), not an appendage the data show."""
+    for r in results:
+        if not (r["accepted"] and r["physics"] == "secondary_oscillator"):
+            continue
+        f_s = next(v for n, v in r["parameters"].items() if n.startswith("f_s"))
+        near = [m.f0 for m in discrepancy if abs(f_s / m.f0 - 1.0) <= HOT_WINDOW]
+        if near:
+            why = (f"its resonance ({f_s:.2f} Hz) lies in the window of the model discrepancy "
+                   f"at {near[0]:.2f} Hz, which no appendage explained as well as a free "
+                   "modal term: it takes up that mode's misfit")
+            r["accepted"], r["significant"], r["why_not"] = False, False, why
+            log(f"  secondary_oscillator {r['location']}: not accepted: {why}")

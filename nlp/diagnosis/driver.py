@@ -38,7 +38,7 @@ from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refit
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide, where
 from nlp.diagnosis.discrepancy import (explained_by, extra_modes_in_band, fit_discrepancy,
-                                       subset_z)
+                                       refute_in_discrepancy, subset_z)
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
@@ -48,7 +48,7 @@ from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
 from nlp.diagnosis.nuisance import hold_open_nuisance
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
-from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
+from nlp.diagnosis.reciprocity import reciprocal_pairs, refute_gains
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen_tests, setup_error_result
 from nlp.diagnosis.spread import chi2_spread
@@ -400,6 +400,7 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
             f"{' (accepted)' if r['accepted'] else ''}"
             f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
     refute_gains(sel, results, log)
+    refute_in_discrepancy(case.discrepancy, results, log)
     sel.tried += results
     accepted = sorted([r for r in results if r["accepted"]], key=evidence)
     if others and accepted:
@@ -407,26 +408,6 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
         sel.unconfirmed += rejected
         sel.consistency += recs
     return accepted
-
-
-def refute_gains(sel, results, log):
-    """Refuse accepted sensor gains that contradict the gain ratios reciprocity fixes between
-    the tests (nlp.diagnosis.reciprocity), with the gains already found."""
-    if not sel.reciprocity:
-        return
-    have = {r["location"]["channel"]: r for r in sel.found if r["physics"] == "sensor_gain"}
-    for r in results:
-        if not (r["accepted"] and r["physics"] == "sensor_gain"):
-            continue
-        gains = {c: next(iter(x["parameters"].values())) for c, x in have.items()}
-        errors = {c: next(iter(x["uncertainty"].values())) for c, x in have.items()}
-        ch = r["location"]["channel"]
-        gains[ch] = next(iter(r["parameters"].values()))
-        errors[ch] = next(iter(r["uncertainty"].values()))
-        why = gain_contradiction(sel.reciprocity, gains, errors)
-        if why:
-            r["accepted"], r["significant"], r["why_not"] = False, False, why
-            log(f"  sensor_gain {r['location']}: not accepted: {why}")
 
 
 def adopt(case, points, sel, others, results, accepted, log):
@@ -478,7 +459,8 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
     alone = []
     if cfg.data.tests and sel.found:
         log("each test alone, with the joint findings:")
-        alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log)
+        alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log,
+                           sel.reciprocity)
     return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone)
 
 

@@ -21,7 +21,7 @@ from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms,
                                     scaled_delta_bic, significance)
 from nlp.diagnosis.families import ExtraMode
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, fit_target, noise_sigma, quasi_se
-from nlp.diagnosis.reciprocity import reciprocal_pairs
+from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
 
 __all__ = ["alone_fits", "own_modes", "start_by_name", "reciprocity_of_tests"]
 
@@ -78,11 +78,12 @@ def _joint_values(pr, z, label, first):
     return out
 
 
-def alone_fits(cfg, case, fit_f, found, state, log):
+def alone_fits(cfg, case, fit_f, found, state, log, pairs=()):
     """[record] of each finding on each test alone (module docstring): test, physics,
     location, the joint estimate ("joint", "joint_uncertainty") and the test's ("alone",
     "alone_uncertainty"), delta_bic_alone, agrees and reason. fit_f: the fitted
-    frequencies [Hz] of the joint look."""
+    frequencies [Hz] of the joint look; pairs: the tests' reciprocal gain ratios
+    (:func:`reciprocity_of_tests`), which say why a test alone misplaces a gain."""
     if not found:
         return []
     pr_j, z_j = state["problem"], state["z"]
@@ -99,8 +100,19 @@ def alone_fits(cfg, case, fit_f, found, state, log):
         th, se = pr.theta(res.z), quasi_se(pr, res.z)[0]
         chi = 2 * res.f
         phi = dispersion(chi, pr.n_used - pr.params.n_z)
+        gains = {r["location"]["channel"]: (float(th[i]), float(se[i])) for r in found
+                 if r["physics"] == "sensor_gain"
+                 for i in [pr.params.names.index(next(iter(r["parameters"])))]}
+        contra = gain_contradiction(pairs, {c: g for c, (g, _) in gains.items()},
+                                    {c: s for c, (_, s) in gains.items()}) if gains else ""
         for j, r in enumerate(found):
-            records.append(_record(c_t, target, enr, j, r, pr, th, se, chi, phi, values, label))
+            rec = _record(c_t, target, enr, j, r, pr, th, se, chi, phi, values, label)
+            if rec["physics"] == "sensor_gain" and not rec["agrees"] and contra:
+                # the test alone has no reciprocal FRF to fix the gain ratio: its gain takes up
+                # model error, as the model-free ratio shows
+                rec["reason"] = ("this test alone cannot fix the gain: " + contra.split(
+                    "reciprocity: ", 1)[-1])
+            records.append(rec)
             log(_line(records[-1]))
     return records
 

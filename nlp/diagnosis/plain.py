@@ -151,8 +151,8 @@ def _alone_words(alone):
     if not bad:
         return head + "; each test fitted alone agrees with every one of them."
     return head + "; fitted alone, " + "; ".join(
-        f"{r['test']} {'cannot see' if 'cannot see' in r['reason'] else 'disagrees on'} the "
-        f"{finding_title(r).lower()}" for r in bad) + " (see the table of each test alone)."
+        f"{r['test']} {'cannot see' if 'cannot' in r['reason'] else 'disagrees on'} "
+        f"{finding_title(r)}" for r in bad) + " (see the table of each test alone)."
 
 
 def alone_rows(d, refs=None):

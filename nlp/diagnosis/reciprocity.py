@@ -24,7 +24,7 @@ import numpy as np
 from nlp.diagnosis.evidence import AGREE
 from nlp.diagnosis.fitting import window_bands
 
-__all__ = ["reciprocal_pairs", "gain_contradiction", "MIN_SE"]
+__all__ = ["reciprocal_pairs", "gain_contradiction", "refute_gains", "MIN_SE"]
 
 MIN_SE = 0.002   # the ratio is never known better than 0.2 % (a calibration's own accuracy)
 
@@ -92,3 +92,23 @@ def gain_contradiction(pairs, gains, errors):
                     f"{100 * pr['se']:.1f} %), while the gains in the model make it "
                     f"{math.exp(implied):.3f}: the gain absorbs model error")
     return ""
+
+
+def refute_gains(sel, results, log):
+    """Refuse accepted sensor gains that contradict the gain ratios reciprocity fixes between
+    the tests (nlp.diagnosis.reciprocity), with the gains already found."""
+    if not sel.reciprocity:
+        return
+    have = {r["location"]["channel"]: r for r in sel.found if r["physics"] == "sensor_gain"}
+    for r in results:
+        if not (r["accepted"] and r["physics"] == "sensor_gain"):
+            continue
+        gains = {c: next(iter(x["parameters"].values())) for c, x in have.items()}
+        errors = {c: next(iter(x["uncertainty"].values())) for c, x in have.items()}
+        ch = r["location"]["channel"]
+        gains[ch] = next(iter(r["parameters"].values()))
+        errors[ch] = next(iter(r["uncertainty"].values()))
+        why = gain_contradiction(sel.reciprocity, gains, errors)
+        if why:
+            r["accepted"], r["significant"], r["why_not"] = False, False, why
+            log(f"  sensor_gain {r['location']}: not accepted: {why}")

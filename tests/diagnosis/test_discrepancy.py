@@ -8,7 +8,9 @@ import yaml
 
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
-from nlp.diagnosis.discrepancy import described
+from nlp.diagnosis.discrepancy import described, refute_in_discrepancy
+from nlp.diagnosis.families import ExtraMode
+from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.diagnosis.driver import baseline_stage, discrepancy_stage, points_stage
 
 from support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
@@ -82,3 +84,20 @@ def test_an_appendages_resonance_is_left_to_the_candidates(tmp_path):
     assert case.discrepancy == (), log
     if any("resonances the model lacks" in line for line in log):
         assert any("secondary_oscillator" in line and "explains it" in line for line in log), log
+
+
+def test_an_appendage_tuned_into_a_discrepancy_window_is_refused():
+    """An accepted appendage whose resonance lies within HOT_WINDOW of a model-discrepancy
+    mode is refused (it takes up that mode's misfit); one elsewhere in the band is kept."""
+    modes = (ExtraMode(28.9, ("a1", "a2")),)
+    inside = 28.9 * (1 - 0.9 * HOT_WINDOW)
+    outside = 28.9 * (1 - 1.1 * HOT_WINDOW)
+    results = [{"physics": "secondary_oscillator", "location": {"floor": k}, "accepted": True,
+                "significant": True, "why_not": "",
+                "parameters": {f"mu{k}": 0.01, f"f_s{k}": f, f"zeta_s{k}": 0.02}}
+               for k, f in ((1, inside), (2, outside))]
+    results.append({"physics": "sensor_gain", "location": {"channel": "a1"}, "accepted": True,
+                    "significant": True, "why_not": "", "parameters": {"gain_a1": 0.05}})
+    refute_in_discrepancy(modes, results, lambda s: None)
+    assert [r["accepted"] for r in results] == [False, True, True]
+    assert "model discrepancy at 28.90 Hz" in results[0]["why_not"]
