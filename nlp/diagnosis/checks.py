@@ -9,8 +9,8 @@
 import numpy as np
 
 from nlp.case.selection import detection_form
-from nlp.diagnosis.band import (MAX_SCATTER, band_map, band_mask, extra_modes, hot_spots,
-                                local_sigma)
+from nlp.diagnosis.band import (MAX_SCATTER, NEAR_MODEL, band_map, band_mask, extra_modes,
+                                hot_spots, local_sigma)
 from nlp.diagnosis.families import HystereticDamping, SensorDelay
 from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, noise_sigma,
                                    quasi_se, with_values)
@@ -170,6 +170,10 @@ def whole_band(case, base, zb, improved, zi, fit):
             c["channel"] = case.channels[c["channel"]].name
         maps[key] = cells
     extra = extra_modes(f, Lx, La, sig, m, d2_factor=d2f)
+    # a resonance kept as model discrepancy is in the model, though its real residue may
+    # leave a channel's peak standing: it is reported there, not again as an extra mode
+    extra = [e for e in extra if not any(abs(e["frequency_hz"] / d.f0 - 1.0) <= NEAR_MODEL
+                                         for d in case.discrepancy)]
     for e in extra:
         e["channels"] = [case.channels[c].name for c in e["channels"]]
         e["strongest"] = case.channels[e["strongest"]].name
