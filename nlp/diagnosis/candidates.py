@@ -8,7 +8,8 @@ baseline parameters (ABSORBED) and reported as such, not guessed at.
 
 import numpy as np
 
-from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
+from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, HystereticDamping,
+                                    LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
 from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
@@ -29,6 +30,8 @@ def candidates(case):
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
     out += [HystereticDamping()] + [HystereticDamping(s) for s in range(1, n + 1)]
     out += [NonadjacentCoupling(i, j) for i in range(1, n + 1) for j in range(i + 2, n + 1)]
+    if n >= 2:
+        out.append(FrameAction())
     # one per sensor: tests fitted jointly share their sensors (nlp.case.joint)
     sensors = list(dict.fromkeys(ch.sensor_name for ch in case.channels))
     out += [SensorGain(s) for s in sensors]

@@ -21,7 +21,7 @@ import numpy as np
 
 from nlp.model.parameters import Parameter
 
-__all__ = ["FAMILIES", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
+__all__ = ["FAMILIES", "FrameAction", "frame_action_dK", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
            "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay", "ExtraMode"]
 
 
@@ -245,6 +245,77 @@ class NonadjacentCoupling:
 
 
 @dataclass(frozen=True)
+class FrameAction:
+    """Frame action: the beams of a moment frame bend, so its floors are not shear-coupled only.
+
+    The shear model is read as a one-bay moment frame whose columns give story i its story
+    stiffness k_i (12 EI/h^3 of the storey's columns) and whose beams at floor j have the
+    beam-column stiffness ratio rho (Blume 1968; Chopra, Dynamics of Structures, sec. 18.2:
+    the floor's beams' EI_b/L over the storey's columns' EI_c/h). With the joint rotations
+    theta (times h) condensed out, K gains
+
+        dK = -eta K_ut (eta K_tt + 12 D)^-1 K_tu,    eta = 1 / rho,
+
+    K_ut, K_tt the column blocks (6 s_i and 4 s_i, 2 s_i, s_i = k_i / 12) and D = diag(s_j)
+    the beams' (12 rho s_j: a symmetric bay's joints turn alike). eta = 0 (rigid beams) is the
+    shear frame; a full dK couples every floor, as a frame with flexible beams does. One
+    parameter, so it competes with a single non-adjacent coupling on equal terms.
+    Parameter: rho_inv = 1 / rho [-].
+    """
+
+    family = "frame_action"
+
+    @property
+    def names(self):
+        return ("rho_inv",)
+
+    @property
+    def location(self):
+        return {}
+
+    def spec(self, ref):
+        # rho from 0.1 (columns 10x the beams) to the shear frame
+        return {"initial": [0.0], "lower": [0.0], "upper": [10.0], "scale": [0.1], "null": [0.0]}
+
+    def apply(self, sys, th, ref):
+        return {**sys, "K": sys["K"] + frame_action_dK(_story_stiffness(ref["K_parts"]), th[0])}
+
+
+def _story_stiffness(K_parts):
+    """Story stiffnesses k_i of the shear chain sum(K_parts): k_{i+1} = -K[i, i+1], k_1 =
+    K[0, 0] - k_2."""
+    K = K_parts[0]
+    for P in K_parts[1:]:
+        K = K + P
+    K = ca.SX(K)
+    n = K.shape[0]
+    k = [-K[i, i + 1] for i in range(n - 1)]
+    return [K[0, 0] - (k[0] if k else 0)] + k
+
+
+def frame_action_dK(k, eta):
+    """dK of :class:`FrameAction` for story stiffnesses k (list, SX or float) and eta = 1/rho."""
+    n = len(k)
+    s = [ki / 12.0 for ki in k]
+    Kut = ca.SX.zeros(n, n)
+    Ktt = ca.SX.zeros(n, n)
+    D = ca.SX.zeros(n, n)
+    for i in range(n):                 # storey i + 1: floor i - 1 (ground at i = 0) to floor i
+        a, b = i - 1, i                # its bottom and top floors (0-based; -1 the ground)
+        Kut[b, b] += -6 * s[i]
+        Ktt[b, b] += 4 * s[i]
+        if a >= 0:
+            Kut[a, a] += 6 * s[i]
+            Kut[a, b] += 6 * s[i]
+            Kut[b, a] += -6 * s[i]
+            Ktt[a, a] += 4 * s[i]
+            Ktt[a, b] += 2 * s[i]
+            Ktt[b, a] += 2 * s[i]
+        D[b, b] = s[i]
+    return -eta * ca.mtimes(Kut, ca.solve(eta * Ktt + 12 * D, Kut.T))
+
+
+@dataclass(frozen=True)
 class SensorGain:
     """A calibration error on one channel: H -> (1 + g) H."""
 
@@ -347,8 +418,8 @@ class ExtraMode:
 
 
 FAMILIES = ("added_mass", "base_flexibility", "secondary_oscillator", "local_damper",
-            "hysteretic_damping", "nonadjacent_coupling", "sensor_gain", "sensor_delay",
-            "nonlinearity")
+            "hysteretic_damping", "nonadjacent_coupling", "frame_action", "sensor_gain",
+            "sensor_delay", "nonlinearity")
 
 
 def extend_parameters(params, enrichments, ref, values=None):

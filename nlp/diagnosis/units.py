@@ -17,7 +17,8 @@ __all__ = ["PHYSICAL", "Quantity", "quantity", "quantities", "describe", "fmt_si
            "place", "FAMILY_WORDS"]
 
 # (family, parameter-name prefix) -> (label, symbol, unit, conversion). conversion:
-# "linear" (the value as fitted), "log10" (10**v), "percent" (100 v), "m_ref" (v times the
+# "linear" (the value as fitted), "log10" (10**v), "percent" (100 v), "inverse" (1/v),
+# "m_ref" (v times the
 # mean floor mass [kg]: shown beside the ratio when that mass is known). The longest
 # matching prefix wins. A family whose parameters change name or scale is updated here.
 PHYSICAL = {
@@ -32,6 +33,7 @@ PHYSICAL = {
     ("local_damper", "c"): ("dashpot", "c", "N s/m", "linear"),
     ("hysteretic_damping", "eta"): ("loss factor", "eta", "%", "percent"),
     ("nonadjacent_coupling", "k"): ("coupling stiffness", "k", "N/m", "linear"),
+    ("frame_action", "rho_inv"): ("beam-column stiffness ratio", "rho", "", "inverse"),
     ("sensor_gain", "gain_"): ("gain error", "g", "%", "percent"),
     ("sensor_delay", "delay_ms_"): ("time delay", "tau", "ms", "linear"),
     ("nonlinearity", "k"): ("story stiffness", None, "N/m", "linear"),
@@ -46,6 +48,7 @@ FAMILY_WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexi
                 "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic "
                 "(frequency-independent) damping", "nonadjacent_coupling": "a stiffness "
                 "coupling between non-adjacent floors (non-shear behaviour)",
+                "frame_action": "frame action (the beams bend: not a shear building)",
                 "sensor_gain": "a sensor calibration (gain) error",
                 "sensor_delay": "a sensor time delay", "nonlinearity": "a level-dependent "
                 "(nonlinear) stiffness"}
@@ -86,6 +89,10 @@ def quantity(physics, name, value, se=None):
         x = 10.0 ** value
         rel = None if se is None else math.log(10.0) * abs(se)   # d(10^v)/10^v = ln10 dv
         return Quantity(label, symbol, x, unit, rel, None if rel is None else rel * x)
+    if how == "inverse":   # fitted as 1/x, so that its null (x infinite) is 0
+        x = 1.0 / value if value else math.inf
+        rel = None if se is None else (abs(se / value) if value else math.inf)
+        return Quantity(label, symbol, x, unit, rel, None if rel is None else rel * abs(x))
     scale = 100.0 if how == "percent" else 1.0
     return Quantity(label, symbol, scale * value, unit, _relative(value, se),
                     None if se is None else scale * abs(se))

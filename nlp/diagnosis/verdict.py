@@ -28,6 +28,7 @@ SUGGESTIONS = {
     "hysteretic_damping": "the phase of the FRFs over a wide band (viscous and hysteretic loss "
                           "differ in phase off resonance)",
     "nonadjacent_coupling": "a second shaker position (force at another floor)",
+    "frame_action": "the frame's drawings (beam and column sizes), or a second shaker position",
     "sensor_gain": "a calibration check of that sensor, or a second sensor on the same floor",
     "sensor_delay": "the phase of the FRFs (complex residual) or a check of the acquisition timing",
     "nonlinearity": "the same test at a second excitation level",
@@ -46,6 +47,7 @@ WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible bas
          "secondary_oscillator": "a secondary oscillator (appendage)",
          "local_damper": "a concentrated damper", "hysteretic_damping": "hysteretic damping",
          "nonadjacent_coupling": "a stiffness coupling (non-shear behaviour)",
+         "frame_action": "frame action (flexible beams: not a shear building)",
          "sensor_gain": "a sensor gain error", "sensor_delay": "a sensor time delay"}
 
 
