@@ -15,7 +15,9 @@ Per category (docs/benchmarks/lab_generator.md):
 * out_of_catalogue: `partly_explained` (a finding with a remaining mismatch) or
   `ambiguous`, and some finding, tie or unconfirmed candidate names the location;
   `missing_physics` with nothing remaining is a confident wrong answer;
-* non_shear: a verdict in the truth's list, and no finding outside nonadjacent_coupling;
+* non_shear: a verdict in the truth's list, no finding outside the truth's acceptable families
+  (frame_action, nonadjacent_coupling, and the set-up ones), and, where the truth says so
+  (must_name_one_of), non-shear behaviour named by frame_action or a non-adjacent coupling;
 * torsion: `partly_explained` or `ambiguous`.
 Rates carry Wilson 95 % intervals.
 """
@@ -81,7 +83,9 @@ def judge(truth, res):
         ok = lab in truth["acceptable_verdicts"] and named(res, truth["location"])
     elif cat == "non_shear":
         extra = [f for f in fams if f not in truth.get("acceptable_families", [])]
-        ok = lab in truth["acceptable_verdicts"] and not extra
+        must = truth.get("must_name_one_of")
+        ok = lab in truth["acceptable_verdicts"] and not extra and (
+            not must or any(f in must for f in fams))
     else:
         ok = lab in truth["acceptable_verdicts"]
     return lab, bool(ok), extra

@@ -177,7 +177,11 @@ def truth_of(spec, st, test, lab, sysm, effects, where, seed):
         tr["outside_effect"] = {"kind": spec["outside"][0], "size": spec["outside"][1]}
     if cat == "non_shear":
         tr["frame"] = st["frame"]
-        tr["acceptable_families"] = ["nonadjacent_coupling"]
+        # non-shear behaviour must be named: frame action, or a coupling of non-adjacent
+        # floors; calibration or timing findings name the lab
+        tr["acceptable_families"] = ["frame_action", "nonadjacent_coupling", "sensor_gain",
+                                     "sensor_delay"]
+        tr["must_name_one_of"] = ["frame_action", "nonadjacent_coupling"]
         tr["design_natural_frequencies_hz"] = st["design_f_n"]
     if cat == "torsion":
         tr["torsion"] = st["torsion"]
