@@ -21,7 +21,7 @@ import numpy as np
 
 from nlp.model.parameters import Parameter
 
-__all__ = ["FAMILIES", "FrameAction", "frame_action_dK", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
+__all__ = ["FAMILIES", "FrameAction", "frame_action_dK", "condensed_dK", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
            "HystereticDamping", "NonadjacentCoupling", "SensorGain", "SensorDelay", "ExtraMode"]
 
 
@@ -248,19 +248,15 @@ class NonadjacentCoupling:
 class FrameAction:
     """Frame action: the beams of a moment frame bend, so its floors are not shear-coupled only.
 
-    The shear model is read as a one-bay moment frame whose columns give story i its story
-    stiffness k_i (12 EI/h^3 of the storey's columns) and whose beams at floor j have the
-    beam-column stiffness ratio rho (Blume 1968; Chopra, Dynamics of Structures, sec. 18.2:
-    the floor's beams' EI_b/L over the storey's columns' EI_c/h). With the joint rotations
-    theta (times h) condensed out, K gains
-
-        dK = -eta K_ut (eta K_tt + 12 D)^-1 K_tu,    eta = 1 / rho,
-
-    K_ut, K_tt the column blocks (6 s_i and 4 s_i, 2 s_i, s_i = k_i / 12) and D = diag(s_j)
-    the beams' (12 rho s_j: a symmetric bay's joints turn alike). eta = 0 (rigid beams) is the
-    shear frame; a full dK couples every floor, as a frame with flexible beams does. One
-    parameter, so it competes with a single non-adjacent coupling on equal terms.
-    Parameter: rho_inv = 1 / rho [-].
+    The shear model is read as a one-bay moment frame with the beam-column stiffness ratio
+    rho (Blume 1968; Chopra, Dynamics of Structures, sec. 18.2: a floor's beams' EI_b/L over
+    the storey's columns' EI_c/h). Its story stiffnesses k_i are the designer's D-values
+    (Muto 1974): the columns' 12 EI/h^3 times a_i(rho), a = rho/(1 + rho) above the first
+    storey and (0.5 + 2 rho)/(2 + 2 rho) in it, so the updated k_i keep their meaning. With
+    the joint rotations condensed out, K becomes the frame's (:func:`frame_action_dK`):
+    rho -> infinity (rigid beams, a_i = 1) is the shear frame, and a finite rho couples every
+    floor as flexible beams do. One parameter, so it competes with a single non-adjacent
+    coupling on equal terms. Parameter: rho_inv = 1 / rho [-].
     """
 
     family = "frame_action"
@@ -293,8 +289,15 @@ def _story_stiffness(K_parts):
     return [K[0, 0] - (k[0] if k else 0)] + k
 
 
-def frame_action_dK(k, eta):
-    """dK of :class:`FrameAction` for story stiffnesses k (list, SX or float) and eta = 1/rho."""
+def condensed_dK(k, eta):
+    """The frame's stiffness minus the shear chain of k, for columns whose rigid-beam story
+    stiffnesses are k (list, SX or float) and beams of ratio rho = 1/eta:
+
+        dK = -eta K_ut (eta K_tt + 12 D)^-1 K_tu
+
+    with the rotations (times h) condensed out: K_ut, K_tt the column blocks (6 s_i; 4 s_i
+    and 2 s_i, s_i = k_i / 12) and D = diag(s_j) for floor j's beams over the storey below
+    (a symmetric bay's two joints turn alike, so its beams add 12 rho s_j)."""
     n = len(k)
     s = [ki / 12.0 for ki in k]
     Kut = ca.SX.zeros(n, n)
@@ -313,6 +316,18 @@ def frame_action_dK(k, eta):
             Ktt[b, a] += 2 * s[i]
         D[b, b] = s[i]
     return -eta * ca.mtimes(Kut, ca.solve(eta * Ktt + 12 * D, Kut.T))
+
+
+def frame_action_dK(k, eta):
+    """dK of :class:`FrameAction`: the frame whose D-value story stiffnesses are k, minus the
+    shear chain of k. The columns' rigid-beam stiffnesses are k_i / a_i; 1/a - 1 is eta above
+    the first storey and 1.5 eta / (0.5 eta + 2) in it."""
+    n = len(k)
+    extra = [k[0] * 1.5 * eta / (0.5 * eta + 2)] + [ki * eta for ki in k[1:]]
+    chain = ca.SX.zeros(n, n)
+    for i, e in enumerate(extra):
+        chain = _spring(chain, i, i - 1 if i else None, e)
+    return chain + condensed_dK([ki + e for ki, e in zip(k, extra)], eta)
 
 
 @dataclass(frozen=True)
