@@ -137,8 +137,10 @@ class SparseFRF:
         if self.banded:
             # symmetric: the lower band (p = row - col >= 0) of the RCM-ordered Z is enough
             self.perm, self.inv, self.bw = perm, inv, bw
-            self.band_entries = np.nonzero(pr >= pc)[0]
-            self.band_index = (pr - pc)[self.band_entries] * n + pc[self.band_entries]
+            entries = np.nonzero(pr >= pc)[0]
+            index = (pr - pc)[entries] * n + pc[entries]
+            order = np.argsort(index)  # in storage order: a run of slots is written as a slice
+            self.band_entries, self.band_index = entries[order], _span(index[order])
             return
         self.perm = None
         if m == 0:
