@@ -53,6 +53,8 @@ def ldlt_banded(L):
     On return L[0] holds 1/D and L[1:] the subdiagonals of the unit lower factor.
     """
     b, n = L.shape[0] - 1, L.shape[1]
+    if b == 1:
+        return _ldlt_tridiagonal(L)
     for j in range(n):
         inv = np.divide(1.0, L[0, j], out=L[0, j])
         h = min(b, n - 1 - j)
@@ -65,10 +67,33 @@ def ldlt_banded(L):
     return L
 
 
+def _ldlt_tridiagonal(L):
+    """:func:`ldlt_banded` for b = 1, the same operations in the same order, written into
+    preallocated rows: each of a shear frame's n steps is five array operations without
+    temporaries."""
+    d, e = L[0], L[1]
+    lj, upd = np.empty_like(d[0]), np.empty_like(d[0])
+    for j in range(L.shape[1] - 1):
+        np.divide(1.0, d[j], out=d[j])              # 1 / D_j
+        np.multiply(e[j], d[j], out=lj)             # l_j = Z[j+1, j] / D_j
+        d[j + 1] -= np.multiply(lj, e[j], out=upd)  # Z[j+1, j+1] -= l_j Z[j+1, j]
+        e[j] = lj
+    np.divide(1.0, d[-1], out=d[-1])
+    return L
+
+
 def ldlt_solve(F, X):
     """Solve L D L^T x = rhs in place for X (n, n_rhs, N_c), F from :func:`ldlt_banded`."""
     b, n = F.shape[0] - 1, F.shape[1]
     tmp = np.empty(X.shape[1:], complex)
+    if b == 1:                                    # the same steps, without the band logic
+        e = F[1]
+        for j in range(n - 1):
+            X[j + 1] -= np.multiply(e[j], X[j], out=tmp)
+        X *= F[0][:, None]
+        for j in range(n - 2, -1, -1):
+            X[j] -= np.multiply(e[j], X[j + 1], out=tmp)
+        return X
     for j in range(n - 1):                        # L y = rhs
         h = min(b, n - 1 - j)
         if h == 1:                                # no temporaries in the tridiagonal case

@@ -30,7 +30,8 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 import casadi as ca
 
-from nlp.frf.backends.banded import lower_band, solve_banded_batch, solve_pivoted
+from nlp.frf.backends.allocator import retain_freed_memory
+from nlp.frf.backends.banded import solve_banded_batch, solve_pivoted
 from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
 from nlp.frf.forms import POWER
 
@@ -108,6 +109,7 @@ class SparseFRF:
         self._choose_solver()
         self.fallbacks = 0  # frequencies re-solved with pivoting (batched banded path)
         self._last = None
+        retain_freed_memory()  # each evaluation reuses the last one's memory, no page faults
 
     # ----------------------------------------------------------- linear solves
     def _choose_solver(self):
@@ -135,8 +137,10 @@ class SparseFRF:
         if self.banded:
             # symmetric: the lower band (p = row - col >= 0) of the RCM-ordered Z is enough
             self.perm, self.inv, self.bw = perm, inv, bw
-            self.band_entries = np.nonzero(pr >= pc)[0]
-            self.band_index = (pr - pc)[self.band_entries] * n + pc[self.band_entries]
+            entries = np.nonzero(pr >= pc)[0]
+            index = (pr - pc)[entries] * n + pc[entries]
+            order = np.argsort(index)  # in storage order: a run of slots is written as a slice
+            self.band_entries, self.band_index = entries[order], _span(index[order])
             return
         self.perm = None
         if m == 0:
@@ -149,6 +153,37 @@ class SparseFRF:
         self._csc_order = order
         self._csc_rows = rows[order]
         self._csc_indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n + m))])
+
+    def _band(self, st, w):
+        """The lower band of the RCM-ordered Z_k = K - w_k^2 M + j w_k C at frequencies w,
+        (b+1, n, N_c) complex (:func:`nlp.frf.backends.banded.lower_band`). C = cM M + cK K
+        (+ dashpots) is real, so the real and imaginary parts are formed in real arithmetic
+        on the band's entries only: the same numbers as the complex products of every
+        pattern entry, at a fraction of the work."""
+        e = self.band_entries
+        vK, vM = st.vK[e, None], st.vM[e, None]
+        im = vK * (w * st.cK) + vM * (w * st.cM)
+        if self.nD:
+            im += w * st.vD[e, None]
+        L = np.zeros(((self.bw + 1) * self.n, w.size), complex)
+        L.real[self.band_index] = vK + vM * (-(w ** 2))
+        L.imag[self.band_index] = im
+        return L.reshape(self.bw + 1, self.n, -1)
+
+    def _banded_solve(self, st, w, rhs):
+        """Z_k X_k = rhs by the batched banded L D L^T (:mod:`nlp.frf.backends.banded`),
+        LAPACK with pivoting where its growth check fails; rhs (n, n_rhs) -> (n_rhs, n, N)."""
+        rp = rhs[self.perm]
+        Xp, bad = solve_banded_batch(self._band(st, w), rp)
+        if bad.size:  # growth check failed: LAPACK with pivoting at those frequencies
+            Lb = self._band(st, w[bad])
+            for i, k in enumerate(bad):
+                Xp[:, :, k] = solve_pivoted(Lb[:, :, i], rp)
+            self.fallbacks += bad.size
+        X = np.empty((rhs.shape[1], self.n, w.size), complex)
+        for r in range(X.shape[0]):  # rows of N contiguous values: a fast gather
+            X[r] = Xp[self.inv, r]
+        return X
 
     def _factor_solve(self, zvals, w, US, rhs):
         """Solve Z_k X_k = rhs at every frequency: zvals (nnz, N), rhs (n, n_rhs);
@@ -166,18 +201,6 @@ class SparseFRF:
             rhs_b = np.vstack([rhs, np.zeros((m, rhs.shape[1]))])
             X = np.linalg.solve(Z, np.broadcast_to(rhs_b, (N, *rhs_b.shape)))
             return np.ascontiguousarray(X[:, :n, :].transpose(2, 1, 0))
-        if self.banded:
-            zb, rp = zvals[self.band_entries], rhs[self.perm]
-            Xp, bad = solve_banded_batch(lower_band(zb, self.band_index, self.bw, n), rp)
-            if bad.size:  # growth check failed: LAPACK with pivoting at those frequencies
-                Lb = lower_band(zb[:, bad], self.band_index, self.bw, n)
-                for i, k in enumerate(bad):
-                    Xp[:, :, k] = solve_pivoted(Lb[:, :, i], rp)
-                self.fallbacks += bad.size
-            X = np.empty((rhs.shape[1], n, N), complex)
-            for r in range(X.shape[0]):  # rows of N contiguous values: a fast gather
-                X[r] = Xp[self.inv, r]
-            return X
         X = np.empty((rhs.shape[1], n, N), complex)
         size = n + m
         if self.perm is not None:  # RCM-ordered pattern, factorised without pivoting
@@ -226,19 +249,24 @@ class SparseFRF:
 
     def _solve(self, st, w, jacobian):
         """q (n, N) and, with ``jacobian``, the adjoints Lam (n_ch, n, N) at frequencies w."""
+        rhs = (np.column_stack([st.b, self.sys.E]) if jacobian else st.b[:, None]).astype(complex)
+        if self.banded:
+            X = self._banded_solve(st, w, rhs)
+            return X[0], X[1:]
         jw = 1j * w
         zvals = (st.vK[:, None] * (1 + jw * st.cK) + st.vM[:, None] * (-(w ** 2) + jw * st.cM))
         if self.nD:
             zvals += jw * st.vD[:, None]
-        rhs = np.column_stack([st.b, self.sys.E]) if jacobian else st.b[:, None]
-        X = self._factor_solve(zvals, w, st.US, rhs.astype(complex))
+        X = self._factor_solve(zvals, w, st.US, rhs)
         return X[0], X[1:]
 
     def _damping_terms(self, st, q, Lam):
         """d(lambda_c^T Z q)/d theta_d / (j w) for the free damping parameters, (free, n_ch, N)."""
-        P = self.pat.P
-        M = sp.csc_matrix((st.vM, P.indices, P.indptr), shape=P.shape)
-        K = sp.csc_matrix((st.vK, P.indices, P.indptr), shape=P.shape)
+        if "MK" not in vars(st):  # M and K at z, built once per evaluation
+            P = self.pat.P
+            st.MK = tuple(sp.csc_matrix((v, P.indices, P.indptr), shape=P.shape)
+                          for v in (st.vM, st.vK))
+        M, K = st.MK
         PM = (Lam * real_times_complex(M, q)[None]).sum(axis=1)
         PK = (Lam * real_times_complex(K, q)[None]).sum(axis=1)
         dj, m = st.d_jac, self.m
@@ -309,9 +337,11 @@ class SparseFRF:
         G = np.stack([wt * fac / s, -1j * wt * fac / s], axis=1).reshape(-1, E.shape[1])
         return R, G  # Im(x) = Re(-j x)
 
-    def _chunk_rows(self, z, data, jacobian):
+    def _chunk_rows(self, z, data, jacobian, Jt=None):
         """(slice, R (n_res, N_c), D (n_z, n_res, N_c) or None) per chunk of frequencies
-        (``CHUNK_BYTES``): the residual rows of Eqn 25a and their derivatives."""
+        (``CHUNK_BYTES``): the residual rows of Eqn 25a and their derivatives. With ``Jt``
+        (n_z, N, n_res), zero, D is its chunk seen as (n_z, n_res, N_c): J is summed in
+        place, with no copy."""
         w, yr, yi, s, wt = data
         n_ch, N, nz = len(self.power), w.size, self.params.n_z
         n_res = n_ch * (2 if self.residual == "complex" else 1)
@@ -323,7 +353,8 @@ class SparseFRF:
             D = None
             if jacobian:
                 G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
-                D = np.zeros((nz, n_res, sl.stop - sl.start))
+                D = (np.zeros((nz, n_res, sl.stop - sl.start)) if Jt is None
+                     else Jt[:, sl].transpose(0, 2, 1))
                 self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
             yield sl, R, D
 
@@ -336,11 +367,9 @@ class SparseFRF:
         N, nz = data[0].size, self.params.n_z
         n_res = len(self.power) * (2 if self.residual == "complex" else 1)
         r = np.empty(N * n_res)
-        Jt = np.empty((nz, N, n_res)) if jacobian else None
-        for sl, R, D in self._chunk_rows(z, data, jacobian):
+        Jt = np.zeros((nz, N, n_res)) if jacobian else None
+        for sl, R, _ in self._chunk_rows(z, data, jacobian, Jt):
             r[sl.start * n_res:sl.stop * n_res] = R.T.ravel()
-            if jacobian:  # a contiguous block for the sums, one transposing copy into J
-                Jt[:, sl] = D.transpose(0, 2, 1)
         return r, (Jt.reshape(nz, -1).T if jacobian else None)
 
     def normal_equations(self, z, data):
