@@ -35,6 +35,10 @@ def data_section(rd, d, base):
                        positive=True, integer=True)
     level_paths = file_list(rd, d.get("level_files") or [], "data.level_files", base)
     tests = _joint_tests(rd, d, base, kind, f)
+    if tests and val:
+        # a held-out test would be judged with the joint model's per-test terms
+        raise rd.err("data.validation_file", "no held-out file beside data.tests (list that "
+                     "test under data.tests: it is fitted jointly)", d["validation_file"])
     dbref = rd.number(d, "db_reference", "data.db_reference", DataConfig.db_reference,
                        positive=True)
     if "db_reference" in d and fmt not in DB_FORMATS:

@@ -110,12 +110,15 @@ def test_the_joint_fit_recovers_a_gain_the_tests_share(tmp_path):
     ([{"file": "t2.npz", "force_floor": 0}], "data.tests[0].force_floor", "> 0"),
     ([{"file": "t2.npz", "label": "t1"}], "data.tests[0].label", "no other test"),
     ("t2.npz", "data.tests", "a list"),
+    ([{"file": "t2.npz", "label": "second"}, "held-out"], "data.validation_file", "no held-out"),
 ])
 def test_bad_joint_tests_are_named(tmp_path, tests, key, words):
     _joint_case(str(tmp_path))
     path = os.path.join(str(tmp_path), "case.yaml")
     with open(path) as fh:
         cfg = yaml.safe_load(fh)
+    if isinstance(tests, list) and "held-out" in tests:
+        tests, cfg["data"]["validation_file"] = tests[:-1], "t2.npz"
     cfg["data"]["tests"] = tests
     with open(path, "w") as fh:
         yaml.safe_dump(cfg, fh)
