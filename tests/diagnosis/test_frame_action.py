@@ -20,6 +20,14 @@ def _num(x):
     return np.array(ca.DM(ca.evalf(ca.SX(x))))
 
 
+def _designer_frame(rho):
+    """(the shear chain of Muto's story stiffnesses plus the family's dK, the beams' EI_b)
+    of the uniform frame with ratio rho."""
+    EI_b = beam_EI_for_rho(rho, EI_U, H, L)
+    k = muto_story_k(EI_U, EI_b, H, L, n_cols=2)
+    return shear_K(k) + _num(frame_action_dK([float(x) for x in k], 1.0 / rho)), EI_b
+
+
 @pytest.mark.parametrize("rho", [0.5, 1.0, 2.0, 5.0])
 def test_condensed_dK_is_the_condensed_frame(rho):
     """Columns of rigid-beam story stiffness k = 24 EI_c/h^3 (two per storey), any EI_c."""
@@ -33,20 +41,15 @@ def test_condensed_dK_is_the_condensed_frame(rho):
 def test_the_family_turns_muto_story_stiffnesses_into_the_frame(rho):
     """A designer's shear model of a uniform frame (Muto's D-values, the lab's own formula):
     the chain plus the family's dK is the frame's condensed stiffness."""
-    EI_b = beam_EI_for_rho(rho, EI_U, H, L)
-    k = muto_story_k(EI_U, EI_b, H, L, n_cols=2)
+    K, EI_b = _designer_frame(rho)
     K_frame = lateral_K(EI_U, EI_b, H, L, n_cols=2)
-    K = shear_K(k) + _num(frame_action_dK([float(x) for x in k], 1.0 / rho))
     np.testing.assert_allclose(K, K_frame, rtol=1e-9, atol=1e-9 * np.abs(K_frame).max())
 
 
 def test_against_opensees():
     pytest.importorskip("openseespy.opensees")
-    rho = 0.8
-    EI_b = beam_EI_for_rho(rho, EI_U, H, L)
+    K, EI_b = _designer_frame(0.8)
     K_ops = lateral_K_opensees(EI_U, EI_b, H, L, n_cols=2)
-    k = muto_story_k(EI_U, EI_b, H, L, n_cols=2)
-    K = shear_K(k) + _num(frame_action_dK([float(x) for x in k], 1.0 / rho))
     np.testing.assert_allclose(K, K_ops, rtol=1e-5, atol=1e-5 * np.abs(K_ops).max())
 
 
