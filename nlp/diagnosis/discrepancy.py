@@ -28,7 +28,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.case.selection import detection_form, selectable
-from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL
+from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL, PEAK_Z, local_sigma
 from nlp.diagnosis.checks import whole_band
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
 from nlp.diagnosis.families import BaseFlexibility, ExtraMode, SecondaryOscillator
@@ -37,7 +37,7 @@ from nlp.diagnosis.refit import refit
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
 
-__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "fit_discrepancy", "explained_by",
+__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "beyond_band", "EDGE_MARGIN", "fit_discrepancy", "explained_by",
            "described", "subset_z", "LEVEL_HALF_WIDTH"]
 
 # The restriction "a catalogue family instead of a free modal term" is refused when its
@@ -46,6 +46,9 @@ __all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "fit_discrepancy", "expla
 # appendage is taken for model error once in a hundred.
 RESTRICTION_LEVEL = 0.99
 LEVEL_HALF_WIDTH = 0.01   # L_c: median |H_x| within +-1 % of the resonance
+# A modal term is fitted only where the band holds both flanks of its peak: +-3 % is some
+# six half-power widths of a mode damped at 0.25 %, and about one at 1.5 %.
+EDGE_MARGIN = 0.03
 
 
 def extra_modes_in_band(case, points, base):
@@ -63,23 +66,83 @@ def extra_modes_in_band(case, points, base):
         f0 = float(e["frequency_hz"])
         # a resonance is a peak of the measurement; a step or dip against the model (a
         # moved anti-resonance) is not one
-        if (fsel.min() < f0 * (1 - 0.03) and f0 * (1 + 0.03) < fsel.max()
+        if (_fittable(f0, fsel)
                 and peaks.size and np.min(np.abs(peaks - f0)) <= NEAR_MODEL * f0
                 and not shifted(case, points.base, base.res.z, f0, peaks)):
             out.append(extra_mode(case, f0))
     return out
 
 
+def _fittable(f0, fsel):
+    """Whether the fitted band holds both flanks of a resonance at f0 [Hz]."""
+    return fsel.min() < f0 * (1 - EDGE_MARGIN) and f0 * (1 + EDGE_MARGIN) < fsel.max()
+
+
+def beyond_band(case, pr, z, extra):
+    """(extra modes, model discrepancy beyond the fitted band) from the whole band's extra
+    modes (:func:`nlp.diagnosis.checks.whole_band`) of the model pr at z.
+
+    A resonance the model lacks where the fitted band cannot hold it (beyond fmin or fmax,
+    or within EDGE_MARGIN of them) cannot be fitted as a modal term, yet the data show it on
+    named channels. Unless it is one of the model's own modes moved (:func:`shifted`), the
+    model class cannot have it: it is model discrepancy, reported with its channels and not
+    fitted. Its in-band effect is the tail of a mode outside the band (residual
+    flexibility), which the fit leaves in the misfit."""
+    ok = selectable(case.config, case.f, case.channels, case.coherence)
+    fsel = case.f[ok]
+    if fsel.size == 0 or not extra:
+        return list(extra), []
+    keep, out, peaks = [], [], measured_peaks(case)
+    for e in extra:
+        f0 = float(e["frequency_hz"])
+        if _fittable(f0, fsel) or shifted(case, pr, z, f0, peaks):
+            keep.append(e)
+            continue
+        side = "above" if f0 > fsel.max() * (1 - EDGE_MARGIN) else "below"
+        band = f"{fsel.min():.1f}-{fsel.max():.1f} Hz"
+        seen = list(dict.fromkeys(list(e["channels"]) + peak_channels(case, f0)))
+        out.append({"physics": "model_discrepancy", "frequency_hz": f0, "channels": seen,
+                    "fitted": False, "band_hz": [float(fsel.min()), float(fsel.max())],
+                    "statement": (f"A resonance at {f0:.2f} Hz, {side} the fitted band "
+                                  f"({band}), seen by {', '.join(seen)}, that the model does not "
+                                  "have and the model class cannot have (an out-of-plane, "
+                                  "torsional or local mode, or a subsystem outside the model): "
+                                  "model discrepancy, reported and not fitted (widen the band "
+                                  "to fit it).")})
+    return keep, out
+
+
+def _ln_accelerance(case):
+    """ln|H| of every channel as an accelerance (every mode peaks there): (n_ch, n_f)."""
+    return np.log(np.abs(detection_form(case.f, case.H, case.channels, case.target.excitation))
+                  + 1e-300)
+
+
 def measured_peaks(case):
     """Frequencies [Hz] of the measured resonances: peaks of any channel's accelerance
-    (every mode peaks there) rising ln 1.2 above their surroundings (band.MIN_EXCESS)."""
-    D = np.log(np.abs(detection_form(case.f, case.H, case.channels, case.target.excitation))
-               + 1e-300)
+    rising ln 1.2 above their surroundings (band.MIN_EXCESS)."""
+    D = _ln_accelerance(case)
     out = set()
     for c in range(D.shape[0]):
         pk, _ = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
         out.update(case.f[pk].tolist())
     return np.array(sorted(out))
+
+
+def peak_channels(case, f0):
+    """Names of the channels whose accelerance peaks within NEAR_MODEL of f0 [Hz], rising
+    above its surroundings by max(ln 1.2, PEAK_Z x the channel's median local noise). The
+    median over the band, not the local value: a strong, sharp peak inflates the local
+    scatter around itself on the channels that see it best."""
+    D = _ln_accelerance(case)
+    sig = np.median(local_sigma(D), axis=1)
+    out = []
+    for c in range(D.shape[0]):
+        pk, props = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
+        near = np.abs(case.f[pk] / f0 - 1.0) <= NEAR_MODEL
+        if np.any(props["prominences"][near] >= max(MIN_EXCESS, PEAK_Z * sig[c])):
+            out.append(case.channels[c].name)
+    return out
 
 
 def shifted(case, pr, z, f0, peaks):
@@ -89,7 +152,7 @@ def shifted(case, pr, z, f0, peaks):
     show a peak the model lacks and lack the model's, one mode, not an extra one. An
     appendage tuned near a mode splits it the same way; it is left to the candidates.
     peaks: the measured resonances [Hz] (:func:`measured_peaks`)."""
-    M, K, _ = pr.matrices(z)
+    M, K, _ = pr.system_matrices(z)
     f_r = np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
                               eigvals_only=True))) / (2 * np.pi)
     near = f_r[np.abs(np.log(f_r / f0)) < np.log(MATCH_RATIO)]

@@ -124,13 +124,7 @@ def paragraph(d, refs=None):
                      "only in part" + _left_words(d.get("mismatch_left")) + ".")
     disc = d.get("model_discrepancy") or []
     if disc:
-        parts.append("The data show " + ("a resonance" if len(disc) == 1 else "resonances")
-                     + " that the model class cannot have, at " + _join(
-                         [f"{x['frequency_hz']:.2f} Hz (seen by {_join(x['channels'])})"
-                          if x.get("channels") else f"{x['frequency_hz']:.2f} Hz" for x in disc])
-                     + ": likely out-of-plane, torsional or local modes. They are kept in the "
-                     "fit as model discrepancy, so no finding above is accepted for absorbing "
-                     "them.")
+        parts.append(_discrepancy_words(disc))
     parts.append(_alone_words(d.get("tests_alone") or []))
     extra = d.get("extra_modes") or []
     if extra:
@@ -139,6 +133,27 @@ def paragraph(d, refs=None):
     if verdict == "ambiguous" and d.get("suggested_measurements"):
         parts.append("The suggested measurements below would tell the candidates apart.")
     return " ".join(p for p in parts if p)
+
+
+def _discrepancy_words(disc):
+    """The resonances the model class cannot have: fitted in the band, reported beyond it."""
+    def at(xs):
+        return _join([f"{x['frequency_hz']:.2f} Hz (seen by {_join(x['channels'])})"
+                      if x.get("channels") else f"{x['frequency_hz']:.2f} Hz" for x in xs])
+    fitted = [x for x in disc if x.get("fitted") is not False]
+    beyond = [x for x in disc if x.get("fitted") is False]
+    text = ("The data show " + ("a resonance" if len(disc) == 1 else "resonances")
+            + " that the model class cannot have, at " + at(disc)
+            + ": likely out-of-plane, torsional or local modes.")
+    if fitted:
+        text += (" Inside the fitted band they are kept in the fit as model discrepancy, so no "
+                 "finding above is accepted for absorbing them" + (f" ({at(fitted)})"
+                                                                   if beyond else "") + ".")
+    if beyond:
+        text += (f" {at(beyond)} " + ("lies" if len(beyond) == 1 else "lie")
+                 + " beyond the fitted band and " + ("is" if len(beyond) == 1 else "are")
+                 + " not fitted.")
+    return text
 
 
 def _alone_words(alone):

@@ -8,7 +8,7 @@ import os
 import textwrap
 
 from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
-from nlp.diagnosis.discrepancy import described
+from nlp.diagnosis.discrepancy import beyond_band, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.look import Conclusion
@@ -237,8 +237,9 @@ def _unconfirmed_statements(cfg, unconfirmed, verdict):
     return out
 
 
-def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole):
-    """What remains unexplained, parameter changes and extra modes."""
+def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra):
+    """What remains unexplained, parameter changes and extra modes (those not reported as
+    model discrepancy)."""
     out = []
     if remaining:
         out.append(REMAINING)
@@ -250,10 +251,10 @@ def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole):
                    "candidate family explains the mismatch.")
     for o in inside["parameter_changes"]:
         out.append(o["statement"])
-    if whole and whole["extra_modes"]:
+    if extra:
         out.append(EXTRA_MODES + "; ".join(
             f"{e['frequency_hz']:.2f} Hz (seen by {', '.join(e['channels'])})"
-            for e in whole["extra_modes"]) + ".")
+            for e in extra) + ".")
     return out
 
 
@@ -295,6 +296,11 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
     verdict = classify(found, unconfirmed, sel.indistinct, nonlin_found, inside["findings"],
                        adequate(base.chi, base.nu, base.held), remaining, bool(disc))
+    # resonances beyond the fitted band do not judge the fit inside it (the verdict above);
+    # they are reported as model discrepancy, not as extra modes
+    whole = checks.whole
+    extra, beyond = beyond_band(case, improved, z_imp, whole["extra_modes"] if whole else [])
+    disc += beyond
     cells_after, _, _ = residual_map(case, improved, z_imp, points.fit, points.held,
                                      points.sig_fit, points.sig_held)
     fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
@@ -304,13 +310,12 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
         findings.insert(0, nonlin["found"])
         statements[:0] = _level_statements(base, nonlin, level_bound)
     suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found,
-                               checks.whole["extra_modes"] if checks.whole else ())
+                               extra + beyond)
     statements += [d["statement"] for d in disc]
     statements += _tie_statements(sel)
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
-    statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, checks.whole)
+    statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra)
     alts = _alternatives(found, sel.alternatives)
-    whole = checks.whole
     result = {"verdict": verdict, "findings": findings,
               "alternatives": [public(r) for r in alts],
               "indistinguishable": [public(r) for r in sel.indistinct],
@@ -330,7 +335,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "fit": {"before": fit_before, "after": fit_after},
               "residual_map": {"before": base.cells, "after": cells_after},
               "whole_band": whole,
-              "extra_modes": whole["extra_modes"] if whole else [],
+              "extra_modes": extra,
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
               "provenance": provenance(cfg)}
     _optional_parts(result, screening, checks, nonlin, nonlin_found)

@@ -315,6 +315,18 @@ def _fit_section(fit, noise):
     return parts
 
 
+def _discrepancy_row(x):
+    """One model-discrepancy resonance: fitted (with errors) or beyond the fitted band."""
+    seen = ", ".join(x["channels"]) or "no channel clearly"
+    if x.get("fitted") is False:
+        lo, hi = x["band_hz"]
+        side = "above" if x["frequency_hz"] > hi else "below"
+        return [f"{x['frequency_hz']:.2f} ({side} the fitted {lo:.1f}-{hi:.1f} Hz: not fitted)",
+                "-", seen]
+    return [f"{x['frequency_hz']:.2f} ± {x['frequency_se_hz']:.2g}",
+            f"{100 * x['damping_ratio']:.2g} ± {100 * x['damping_ratio_se']:.2g}", seen]
+
+
 def _discrepancy_section(d):
     """Model discrepancy (resonances outside the model class) and where the rest of a partly
     explained mismatch sits, as tables."""
@@ -322,13 +334,11 @@ def _discrepancy_section(d):
     disc = d.get("model_discrepancy") or []
     if disc:
         parts += ["<h2>Model discrepancy: resonances the model class cannot have</h2>",
-                  "<p>Kept in every fit as a modal term, so no finding is accepted for "
-                  "absorbing them; not findings themselves.</p>",
+                  "<p>Those inside the fitted band are kept in every fit as a modal term, so "
+                  "no finding is accepted for absorbing them; those beyond it are seen in the "
+                  "data and not fitted. None is a finding.</p>",
                   _table(["frequency [Hz]", "damping ratio [%]", "seen by"],
-                         [[f"{x['frequency_hz']:.2f} ± {x['frequency_se_hz']:.2g}",
-                           f"{100 * x['damping_ratio']:.2g} ± {100 * x['damping_ratio_se']:.2g}",
-                           ", ".join(x["channels"]) or "no channel clearly"] for x in disc],
-                         "text")]
+                         [_discrepancy_row(x) for x in disc], "text")]
     cells = ((d.get("mismatch_left") or {}).get("cells") or [])[:8]
     if cells:
         parts += ["<h2>Where the rest of the mismatch sits</h2>",

@@ -8,12 +8,15 @@ import yaml
 
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
-from nlp.diagnosis.discrepancy import described, refute_in_discrepancy
+from scipy.linalg import eigh
+
+from nlp.diagnosis.checks import whole_band
+from nlp.diagnosis.discrepancy import beyond_band, described, refute_in_discrepancy
 from nlp.diagnosis.families import ExtraMode
 from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.diagnosis.driver import baseline_stage, discrepancy_stage, points_stage
 
-from support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
+from support.diagnosis import F, baseline_fit, frame_matrices, write_case_yaml, write_frf
 
 m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
 F_X = 9.5          # the resonance outside the model [Hz]
@@ -101,3 +104,47 @@ def test_an_appendage_tuned_into_a_discrepancy_window_is_refused():
     refute_in_discrepancy(modes, results, lambda s: None)
     assert [r["accepted"] for r in results] == [False, True, True]
     assert "model discrepancy at 28.90 Hz" in results[0]["why_not"]
+
+
+def _beyond(tmp_path, H, fmax, fixed):
+    """The whole band's extra modes of a baseline fit up to fmax [Hz], split by beyond_band."""
+    write_frf(tmp_path, "frf.npz", H)
+    write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": fixed},
+                    {"model": "rayleigh", "zeta": 0.015})
+    doc = yaml.safe_load((tmp_path / "case.yaml").read_text())
+    doc["frequencies"].update(fmax=fmax, n_peaks=2)
+    (tmp_path / "case.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    case, base = baseline_fit(load_case(str(tmp_path / "case.yaml")))
+    pr, z = base["problem"], base["z"]
+    whole = whole_band(case, pr, z, pr, z, np.arange(0))
+    return beyond_band(case, pr, z, whole["extra_modes"])
+
+
+def test_a_resonance_beyond_the_fitted_band_is_reported_with_its_channels(tmp_path):
+    """A modal term at 11 Hz on floors 1 and 3 (none on floor 2), above a band that ends at
+    9 Hz: model discrepancy seen by a1 and a3, not fitted."""
+    rng = np.random.default_rng(5)
+    M, C, K = frame_matrices(m, k)
+    H = _frame_frf(M, C, K, rng)
+    w, wx, zx = 2 * np.pi * F, 2 * np.pi * 11.0, 0.005
+    r = np.array([0.004, 0.0, -0.003])
+    H += r[:, None] * (-w**2) / (wx**2 - w**2 + 2j * zx * wx * w)
+    extra, beyond = _beyond(tmp_path, H, 9.0, {f"m{i + 1}": 5.0 for i in range(3)})
+    assert len(beyond) == 1, (extra, beyond)
+    b = beyond[0]
+    assert abs(b["frequency_hz"] - 11.0) <= 0.05 and b["fitted"] is False
+    assert set(b["channels"]) == {"a1", "a3"}
+    assert b["band_hz"][1] <= 9.0 and "above the fitted band" in b["statement"]
+    assert all(abs(e["frequency_hz"] - 11.0) > 0.2 for e in extra)
+
+
+def test_a_model_mode_moved_beyond_the_band_is_not_discrepancy(tmp_path):
+    """The data's third storey mode moved up 4 % (k3 15 % stiffer than the fixed nominal),
+    beyond a band that ends at 6 Hz: the model's own mode, moved, stays an extra mode."""
+    rng = np.random.default_rng(6)
+    M, C, K = frame_matrices(m, k * np.array([1.0, 1.0, 1.15]))
+    fixed = {f"m{i + 1}": 5.0 for i in range(3)} | {f"k{i + 1}": float(k[i]) for i in range(3)}
+    extra, beyond = _beyond(tmp_path, _frame_frf(M, C, K, rng), 6.0, fixed)
+    f3 = np.sqrt(eigh(K, M, eigvals_only=True))[-1] / (2 * np.pi)
+    assert beyond == [], beyond
+    assert any(abs(e["frequency_hz"] / f3 - 1) < 0.01 for e in extra), (f3, extra)
