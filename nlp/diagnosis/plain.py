@@ -145,14 +145,17 @@ def _discrepancy_words(disc):
     text = ("The data show " + ("a resonance" if len(disc) == 1 else "resonances")
             + " that the model class cannot have, at " + at(disc)
             + ": likely out-of-plane, torsional or local modes.")
+    hz = _join([f"{x['frequency_hz']:.2f}" for x in beyond]) + " Hz" if beyond else ""
     if fitted:
-        text += (" Inside the fitted band they are kept in the fit as model discrepancy, so no "
-                 "finding above is accepted for absorbing them" + (f" ({at(fitted)})"
-                                                                   if beyond else "") + ".")
+        text += (" Inside the fitted band " + (f"({_join([format(x['frequency_hz'], '.2f') for x in fitted])} Hz) "
+                                              if beyond else "")
+                 + ("it is" if len(fitted) == 1 else "they are") + " kept in the fit as model "
+                 "discrepancy, so no finding above is accepted for absorbing "
+                 + ("it" if len(fitted) == 1 else "them") + ".")
     if beyond:
-        text += (f" {at(beyond)} " + ("lies" if len(beyond) == 1 else "lie")
-                 + " beyond the fitted band and " + ("is" if len(beyond) == 1 else "are")
-                 + " not fitted.")
+        text += (f" {'The one at ' if len(beyond) == 1 else ''}{hz} "
+                 + ("lies" if len(beyond) == 1 else "lie") + " beyond the fitted band and "
+                 + ("is" if len(beyond) == 1 else "are") + " not fitted.")
     return text
 
 
