@@ -10,15 +10,15 @@ seeds (0-99) are scored: an exam seed is scored once, by the protocol of issue 4
 Per category (docs/benchmarks/lab_generator.md):
 * null_lab: right when the verdict is `adequate` or `setup_error`, or every finding is a
   calibration or timing one (sensor_gain, sensor_delay); otherwise a false alarm;
-* in_catalogue: the effect found with its family and location; other findings are wrong
-  extra findings;
+* in_catalogue: the effect found with its family and location; other structural findings are
+  wrong extra findings (calibration and timing findings are counted apart: the lab has them);
 * out_of_catalogue: `partly_explained` (a finding with a remaining mismatch) or
   `ambiguous`, and some finding, tie or unconfirmed candidate names the location;
   `missing_physics` with nothing remaining is a confident wrong answer;
 * non_shear: a verdict in the truth's list, no finding outside the truth's acceptable families
   (frame_action, nonadjacent_coupling, and the set-up ones), and, where the truth says so
   (must_name_one_of), non-shear behaviour named by frame_action or a non-adjacent coupling;
-* torsion: `partly_explained` or `ambiguous`.
+* torsion: `partly_explained` or `ambiguous`; a structural finding there is a wrong extra one.
 Rates carry Wilson 95 % intervals.
 """
 
@@ -67,18 +67,25 @@ def named(res, where):
 
 
 def judge(truth, res):
-    """One case's verdict label, whether it is right, and its wrong extra findings."""
+    """One case's verdict label, whether it is right, and its wrong extra findings
+    ("family location"). On an effect case a wrong extra finding is a structural finding that
+    matches no planted effect in family and location; calibration and timing findings
+    (SETUP) that match none are the lab's own imperfections, counted apart (set_up)."""
     cat, lab = truth["category"], label(res)
-    fams = [f["physics"] for f in (res or {}).get("findings", [])]
-    extra = []
+    found = (res or {}).get("findings", [])
+    fams = [f["physics"] for f in found]
+    extra, set_up = [], []
     if cat == "null_lab":
         ok = lab in truth["acceptable_verdicts"] or (fams and all(f in SETUP for f in fams))
     elif cat == "in_catalogue":
-        found = res.get("findings", []) if res else []
-        ok = all(any(f["physics"] == e["family"] and same_location(f["location"], e["location"])
+        def planted(f):
+            return any(f["physics"] == e["family"] and same_location(f.get("location", {}), e["location"])
+                       for e in truth["effects"])
+        ok = all(any(f["physics"] == e["family"] and same_location(f.get("location", {}), e["location"])
                      for f in found) for e in truth["effects"])
-        extra = [f["physics"] for f in found
-                 if not any(f["physics"] == e["family"] for e in truth["effects"])]
+        for f in found:
+            if not planted(f):
+                (set_up if f["physics"] in SETUP else extra).append(f"{f['physics']} {f.get('location')}")
     elif cat == "out_of_catalogue":
         ok = lab in truth["acceptable_verdicts"] and named(res, truth["location"])
     elif cat == "non_shear":
@@ -86,9 +93,10 @@ def judge(truth, res):
         must = truth.get("must_name_one_of")
         ok = lab in truth["acceptable_verdicts"] and not extra and (
             not must or any(f in must for f in fams))
-    else:
+    else:   # torsion: no catalogue family describes it, so a structural finding is wrong
         ok = lab in truth["acceptable_verdicts"]
-    return lab, bool(ok), extra
+        extra = [f for f in fams if f not in SETUP]
+    return lab, bool(ok), extra, set_up
 
 
 def run(folder, timeout):
@@ -116,19 +124,41 @@ def line(r):
             + ("  found: " + "; ".join(r["found"]) if r["found"] else ""))
 
 
+def _rate(k, n):
+    lo, hi = wilson(k, n)
+    return f"{k}/{n} ({100 * k / n:.0f} %, Wilson 95 % {100 * lo:.0f}-{100 * hi:.0f} %)" if n else "0/0"
+
+
 def summary(rows):
+    """The figures issue 48 asks for, each with its Wilson 95 % interval."""
     print()
     for cat in ("null_lab", "in_catalogue", "out_of_catalogue", "non_shear", "torsion"):
         rs = [r for r in rows if r["category"] == cat]
         if rs:
-            k = sum(r["ok"] for r in rs)
-            lo, hi = wilson(k, len(rs))
-            print(f"{cat:17s} right {k}/{len(rs)} ({100 * k / len(rs):.0f} %, Wilson 95 % "
-                  f"{100 * lo:.0f}-{100 * hi:.0f} %)")
+            print(f"{cat:17s} right {_rate(sum(r['ok'] for r in rs), len(rs))}")
+    nulls = [r for r in rows if r["category"] == "null_lab"]
+    if nulls:
+        print(f"false alarms on nulls: {_rate(sum(not r['ok'] for r in nulls), len(nulls))}")
     eff = [r for r in rows if r["category"] == "in_catalogue"]
-    wrong = sum(bool(r["extra"]) for r in eff)
-    if eff:
-        print(f"in_catalogue cases with a wrong extra finding: {wrong}/{len(eff)}")
+    for fam in sorted({f for r in eff for f in r.get("families", [])}):
+        rs = [r for r in eff if fam in r.get("families", [])]
+        print(f"  detection, {fam:22s} {_rate(sum(r['ok'] for r in rs), len(rs))}")
+    effect = [r for r in rows if r["category"] in ("in_catalogue", "non_shear", "torsion")]
+    n_found = sum(r.get("n_found", len(r["found"])) for r in effect)
+    n_extra = sum(len(r["extra"]) for r in effect)
+    if effect:
+        print(f"wrong extra findings on effect cases (in_catalogue, non_shear, torsion): "
+              f"{_rate(n_extra, n_found)} of accepted findings; cases with one: "
+              f"{sum(bool(r['extra']) for r in effect)}/{len(effect)}")
+        print(f"set-up findings (calibration, timing) beside a planted effect: "
+              f"{sum(len(r.get('set_up', [])) for r in eff)} in {len(eff)} in-catalogue cases")
+    ooc = [r for r in rows if r["category"] == "out_of_catalogue"]
+    if ooc:
+        print(f"out-of-catalogue effects reported partly_explained or ambiguous at the right "
+              f"location: {_rate(sum(r['ok'] for r in ooc), len(ooc))}")
+    slow = [r for r in rows if r["exit"] != 0]
+    if slow:
+        print(f"no result (timeout or error, counted wrong): {len(slow)}")
 
 
 def main():
@@ -161,10 +191,12 @@ def main():
                   "pass --exam to score an exam once", file=sys.stderr)
             return 2
         code, err, seconds, res = run(folder, a.timeout)
-        lab, ok, extra = judge(truth, res)
+        lab, ok, extra, set_up = judge(truth, res)
         r = {"case": name, "category": truth["category"], "exit": code, "error": err,
              "seconds": seconds, "verdict": res["verdict"] if res else None, "label": lab, "ok": ok,
-             "extra": extra, "development": truth["seed"] // 1000 < 100,
+             "extra": extra, "set_up": set_up, "n_found": len((res or {}).get("findings", [])),
+             "families": [e["family"] for e in truth.get("effects", [])],
+             "development": truth["seed"] // 1000 < 100,
              "found": [f"{f['physics']} {f['location']}" for f in (res or {}).get("findings", [])]}
         with open(log, "a") as fh:
             fh.write(json.dumps(r) + "\n")
