@@ -70,6 +70,8 @@ def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, o
     # (minutes per round on a refit of a few thousand residuals and some 30 parameters;
     # see docs/method/diagnosis.md)
     pr.polish_unconverged = max_iter is None
+    # its objective is half a chi-square, the unit of the polish's stationarity test
+    pr.early_polish = True
     return pr
 
 

@@ -41,8 +41,9 @@ def _hessian(grad, z, free, lo, hi):
     return 0.5 * (H + H.T)
 
 
-def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY):
-    """Newton steps on f from z inside [lo, hi] and on G dz = 0.
+def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY, convex_start=False):
+    """Newton steps on f from z inside [lo, hi] and on G dz = 0; with convex_start, none
+    unless the Hessian at z is positive definite (z lies in the bowl of one minimum).
 
     Parameters
     ----------
@@ -86,6 +87,8 @@ def newton_polish(fg, z, lo, hi, G=None, max_steps=30, tol=NEWTON_STATIONARY):
         if newton is None:
             return z, f, 0.0, True, step
         dz, free, pd, dec = newton
+        if convex_start and step == 0 and not pd:
+            return z, f, np.inf, False, 0
         dec += _held_decrement(H0, g, idx0, free, at_lo, at_hi)
         if pd and dec < tol:
             return z, f, dec, True, step

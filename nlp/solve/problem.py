@@ -41,7 +41,7 @@ from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
 from nlp.solve.polish import MAX_PARAMETERS, newton_polish
 from nlp.solve.prefit import PREFIT_FAR, PREFIT_MAX_ITER, PREFITS, prefit_residual
 from nlp.solve.residuals import RESIDUALS, data_arrays, frequency_functions, pack_data
-from nlp.solve.stopping import STATIONARY, decrement_normal, gauss_newton_decrement
+from nlp.solve.stopping import POLISH_AT, STATIONARY, decrement_normal, gauss_newton_decrement
 
 __all__ = ["SOLVERS", "PREFITS", "PREFIT_MAX_ITER", "prefit_residual", "Channel", "Target", "SolverConfig", "LocalResult",
            "UpdatingProblem"]
@@ -341,9 +341,9 @@ class UpdatingProblem:
     lm_prefit = False  # True: prefits by LM, handed over near their minimum
     lm_local = False   # True: every local solve by LM
 
-    # Newton polish where IPOPT ends unconverged; off for solves capped on purpose below
-    # the case's iteration limit (candidate refits that only bound their optimum)
+    # Newton polish where IPOPT ends unconverged; off for refits capped on purpose
     polish_unconverged = True
+    early_polish = False   # True (diagnosis fits, f half a chi-square): stop at POLISH_AT to polish
 
     def solve(self, z0=None, screen=False, bounds=None, prefit=True):
         """One local solve from z0 (default: the case's initial point).
@@ -352,10 +352,9 @@ class UpdatingProblem:
             case's tolerance (1e-8), when :attr:`can_screen`. The scatter search
             screens its starts this way and polishes the best ones with the full
             tolerance (:func:`nlp.solve.search.scatter_search`).
-        bounds : optional (lower, upper) on z in place of :attr:`bounds`: equal ones hold a
-            variable, so nested models share one compiled problem.
-        prefit : solve :attr:`prefit` first when there is one (False: a re-solve from an
-            optimum of this residual).
+        bounds : optional (lower, upper) on z in place of :attr:`bounds` (equal ones hold a
+            variable: nested models share one compiled problem).
+        prefit : solve :attr:`prefit` first when there is one (False: a re-solve).
         """
         z0 = self.z0 if z0 is None else np.asarray(z0, float)
         lo, hi = self.bounds if bounds is None else bounds
@@ -370,7 +369,14 @@ class UpdatingProblem:
                                iterations=0, seconds=time.perf_counter() - t0, z0=z0c,
                                prefit_iterations=pre.iterations)
         z_start = z0c if pre is None else pre.z
-        z, f, success, status, iters = self._local(z_start, lo, hi, screen)
+        z, f, success, status, iters = self._local(z_start, lo, hi, screen, early=True)
+        if self._stop is not None and self._stop.early:
+            # stopped at POLISH_AT: Newton steps only from a convex point (an earlier,
+            # unchecked polish once found a worse minimum: docs/method/updating.md)
+            z, f, success, status = self._polish(z, f, lo, hi, status, convex_start=True)
+            if not success:
+                z, f, success, status, more = self._local(z, lo, hi, screen)
+                iters += more
         if not success and status in ("User_Requested_Stop", "Maximum_Iterations_Exceeded",
                                       "Maximum_CpuTime_Exceeded", "Search_Direction_Becomes_Too_Small",
                                       "Solved_To_Acceptable_Level"):
@@ -378,11 +384,7 @@ class UpdatingProblem:
             if dec < STATIONARY:
                 success, status = True, f"Stationary (Gauss-Newton decrement {dec:.1e})"
             elif self.polish_unconverged and self.params.n_z <= MAX_PARAMETERS and np.isfinite(f):
-                # J^T J misses the curvature of large residuals: finish with full Newton
-                # steps from where IPOPT ended. Not earlier: on a blind shared-stiffness fit,
-                # stopping IPOPT once f fell by < 0.05 per 100 iterations and polishing gave
-                # a minimum at f 471.8; IPOPT's creep to its limit, 411.9
-                # (docs/benchmarks/history.md)
+                # J^T J misses the curvature of large residuals: Newton steps finish it
                 z, f, success, status = self._polish(z, f, lo, hi, status)
         seconds = time.perf_counter() - t0
         return LocalResult(z=z, f=f, success=success, status=status, iterations=iters,
@@ -397,8 +399,9 @@ class UpdatingProblem:
         eigenvalue 2e-11 against 1e5) ran to steps of 0.004 and to its iteration limit."""
         return self.backend != "dense" and self.solver_config.name == "ipopt" and self.lm_local
 
-    def _local(self, z_start, lo, hi, screen):
-        """(z, f, success, status, iterations) of one local solve from z_start."""
+    def _local(self, z_start, lo, hi, screen, early=False):
+        """(z, f, success, status, iterations) of one local solve from z_start; early: stop
+        once at POLISH_AT iterations (polished solves of up to MAX_PARAMETERS)."""
         if self.uses_lm:
             res = self.solve_lm(z_start, (lo, hi))
             return res.z, res.f, res.success, res.status, res.iterations
@@ -410,7 +413,9 @@ class UpdatingProblem:
                 self._screen_solver = ca.nlpsol("screen", self.solver_config.name, nlp, opts)
             solver = self._screen_solver
         if self._stop is not None:
-            self._stop.calls = 0
+            self._stop.calls, self._stop.early = 0, False
+            self._stop.polish_at = POLISH_AT if (early and self.early_polish and self.polish_unconverged
+                                                 and self.params.n_z <= MAX_PARAMETERS) else None
         sol = solver(x0=z_start, p=self._p, lbx=lo, ubx=hi, lbg=g0, ubg=g0)
         st = solver.stats()
         return (np.asarray(sol["x"]).ravel(), float(sol["f"]), bool(st.get("success", False)),
@@ -462,7 +467,7 @@ class UpdatingProblem:
                            iterations=res.iterations, seconds=time.perf_counter() - t0,
                            z0=np.clip(z0, lo, hi))
 
-    def _polish(self, z, f, lo, hi, status):
+    def _polish(self, z, f, lo, hi, status, convex_start=False):
         """Newton steps on the full Hessian where the Gauss-Newton solver stopped short of a
         stationary point (:mod:`nlp.solve.polish`); the start is kept unless they reach one."""
         def fg(x):
@@ -471,7 +476,8 @@ class UpdatingProblem:
 
         G = self.constraint_jacobian()
         try:
-            zp, fp, dec, ok, steps = newton_polish(fg, z, lo, hi, G if G.size else None)
+            zp, fp, dec, ok, steps = newton_polish(fg, z, lo, hi, G if G.size else None,
+                                                   convex_start=convex_start)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             return z, f, False, status
         if ok and fp <= f:

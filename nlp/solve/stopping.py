@@ -11,7 +11,7 @@ import numpy as np
 
 from nlp.solve.identify import tangent_basis
 
-__all__ = ["SCREEN_TOL", "STATIONARY", "STATIONARY_EVERY", "STATIONARY_FROM", "LIMIT_STATUSES",
+__all__ = ["SCREEN_TOL", "STATIONARY", "STATIONARY_EVERY", "STATIONARY_FROM", "POLISH_AT", "LIMIT_STATUSES",
            "gauss_newton_decrement", "free_variables", "decrement_normal", "StopWhenStationary"]
 
 SCREEN_TOL = 1e-5  # IPOPT tol of screening solves (the default tol is 1e-8)
@@ -23,6 +23,11 @@ SCREEN_TOL = 1e-5  # IPOPT tol of screening solves (the default tol is 1e-8)
 STATIONARY = 1e-6
 STATIONARY_EVERY = 10   # IPOPT iterations between two stationarity checks ...
 STATIONARY_FROM = 50    # ... from this iteration on (a solve that converges sooner pays nothing)
+# A Gauss-Newton solve of a well-posed fit converges in tens of iterations (20 on the
+# four-storey case); one still going here is creeping along a direction that J^T J misses
+# (large residuals). It is stopped once to try Newton steps on the full Hessian from a
+# convex point (nlp.solve.polish), and resumed when they do not reach a minimum.
+POLISH_AT = 100
 #: solver statuses of a solve stopped by its iteration or time limit
 LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
                   "Maximum_WallTime_Exceeded", "Max_Iter_Exceeded")
@@ -63,13 +68,15 @@ def decrement_normal(z, g, A, lo, hi, G=None):
 
 class StopWhenStationary(ca.Callback):
     """IPOPT iteration callback: asks the solver to stop at a stationary point
-    (``decrement(x)`` below :data:`STATIONARY`)."""
+    (``decrement(x)`` below :data:`STATIONARY`), and once at iteration ``polish_at`` when
+    that is set (``early`` then says it stopped there)."""
 
     def __init__(self, decrement, nx, ng, np_):
         ca.Callback.__init__(self)
         self._decrement, self._n = decrement, {"x": nx, "lam_x": nx, "g": ng, "lam_g": ng,
                                                "f": 1, "lam_p": np_}
-        self.calls = 0   # reset by UpdatingProblem.solve
+        self.calls = 0   # reset by UpdatingProblem.solve, with polish_at and early
+        self.polish_at, self.early = None, False
         self.construct("stop_when_stationary", {})
 
     def get_n_in(self):
@@ -90,6 +97,9 @@ class StopWhenStationary(ca.Callback):
 
     def eval(self, args):
         self.calls += 1
+        if self.polish_at is not None and (self.calls - 1) * STATIONARY_EVERY >= self.polish_at:
+            self.polish_at, self.early = None, True
+            return [1]
         if self.calls * STATIONARY_EVERY < STATIONARY_FROM:
             return [0]
         x = np.asarray(args[0], float).ravel()

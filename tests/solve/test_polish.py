@@ -5,8 +5,9 @@ from scipy.optimize import least_squares
 
 from nlp.case.assemble import assemble
 from nlp.case.load import load_case
-from nlp.diagnosis.fitting import diagnosis_problem
+from nlp.diagnosis.fitting import diagnosis_problem, fit_target, noise_sigma
 from nlp.solve.polish import newton_polish
+import nlp.solve.problem as P
 from nlp.solve.problem import UpdatingProblem
 from support.cases import write_case
 
@@ -116,9 +117,9 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     calls = []
     real = UpdatingProblem._polish
 
-    def counted(self, *a):
+    def counted(self, *a, **k):
         calls.append(self.polish_unconverged)
-        return real(self, *a)
+        return real(self, *a, **k)
 
     monkeypatch.setattr(UpdatingProblem, "_polish", counted)
     capped = diagnosis_problem(case, case.target, compile=False, max_iter=2)
@@ -129,3 +130,52 @@ def test_capped_refits_are_not_polished(tmp_path, monkeypatch):
     capped.solve(0.5 * capped.z0 + 0.5 * capped.bounds[1])
     assert calls == [True]
     assert diagnosis_problem(case, case.target, compile=False).polish_unconverged
+
+
+def test_a_convex_start_is_required_when_asked():
+    """f = (x^2 - 1)^2 / 4: f'' = 3 x^2 - 1 is negative at x = 0.2 (no Newton step is taken
+    from there when a convex start is required) and positive at x = 1.3 (Newton reaches the
+    minimum x = 1, to the polish's tolerance: a chi-square decrement f'' dx^2 of 1e-4, so
+    |dx| < 0.01)."""
+    def fg(z):
+        x = z[0]
+        return 0.25 * (x * x - 1) ** 2, np.array([x * (x * x - 1)])
+
+    lo, hi = np.array([-5.0]), np.array([5.0])
+    z, f, dec, ok, steps = newton_polish(fg, np.array([0.2]), lo, hi, convex_start=True)
+    assert not ok and steps == 0 and z[0] == 0.2
+    z, f, dec, ok, steps = newton_polish(fg, np.array([1.3]), lo, hi, convex_start=True)
+    assert ok and abs(z[0] - 1.0) < 0.01 and steps >= 1
+
+
+def _early(tmp_path, monkeypatch, polish_at):
+    path, _ = write_case(str(tmp_path), noise=0.02, seed=1,
+                         frequencies={"method": "half_power", "k": 2.0, "fmax": 7.0})
+    case = assemble(load_case(path))
+    monkeypatch.setattr(P, "POLISH_AT", polish_at)
+    fit = np.arange(case.f.size)
+    pr = diagnosis_problem(case, fit_target(case, fit, noise_sigma(case, fit)), compile=False)
+    return pr, pr.solve(0.5 * pr.z0 + 0.5 * pr.bounds[1])
+
+
+def test_a_solve_stopped_early_and_polished_reaches_the_uninterrupted_optimum(tmp_path, monkeypatch):
+    """IPOPT stopped at iteration 10 and finished by Newton steps ends at the optimum of
+    the same solve left to IPOPT (no early stop), on a fit in noise units (f half a
+    chi-square): f within 1e-4, the polish's stationarity test (a Newton step would lower
+    the chi-square by less than 1e-4), and z within 1e-3."""
+    pr, early = _early(tmp_path, monkeypatch, 10)
+    assert early.success and "Newton steps" in early.status and early.iterations <= 11
+    monkeypatch.setattr(P, "POLISH_AT", 10 ** 9)
+    full = pr.solve(0.5 * pr.z0 + 0.5 * pr.bounds[1])
+    assert full.success and "Newton" not in full.status and full.iterations > early.iterations
+    assert abs(early.f - full.f) <= 1e-4
+    np.testing.assert_allclose(early.z, full.z, atol=1e-3)
+
+
+def test_a_solve_whose_early_polish_fails_goes_on_with_ipopt(tmp_path, monkeypatch):
+    """Where the Newton steps from the early stop do not reach a minimum (forced here),
+    IPOPT resumes from that point and converges by its own test."""
+    monkeypatch.setattr(UpdatingProblem, "_polish",
+                        lambda self, z, f, lo, hi, status, convex_start=False: (z, f, False, status))
+    pr, res = _early(tmp_path, monkeypatch, 10)
+    assert res.success and "Newton" not in res.status and res.iterations > 10
