@@ -274,7 +274,9 @@ class FrameAction:
         return {"initial": [0.0], "lower": [0.0], "upper": [10.0], "scale": [0.1], "null": [0.0]}
 
     def apply(self, sys, th, ref):
-        return {**sys, "K": sys["K"] + frame_action_dK(_story_stiffness(ref["K_parts"]), th[0])}
+        dK = frame_action_dK(_story_stiffness(ref["K_parts"]), th[0])
+        extra = sys["K"].shape[0] - dK.shape[0]   # DOFs other families appended: untouched
+        return {**sys, "K": sys["K"] + (ca.diagcat(dK, ca.SX.zeros(extra, extra)) if extra else dK)}
 
 
 def _story_stiffness(K_parts):

@@ -71,3 +71,21 @@ def test_the_family_reads_the_story_stiffnesses_from_the_model():
     K_frame = lateral_K(EI_U, EI_b, H, L, n_cols=2)
     np.testing.assert_allclose(_num(out["K"]), K_frame, rtol=1e-9,
                                atol=1e-9 * np.abs(K_frame).max())
+
+
+def test_after_an_appended_dof_the_frame_acts_on_the_floors_only():
+    """With an appendage's DOF already appended (K is 5 x 5 on a 4-storey frame), frame
+    action changes the floors' block as on the bare frame and leaves the appended row and
+    column alone."""
+    EI_b = beam_EI_for_rho(1.5, EI_U, H, L)
+    k = muto_story_k(EI_U, EI_b, H, L, n_cols=2)
+    parts = [ca.DM(shear_K(np.where(np.arange(4) == r, k, 0.0))) for r in range(4)]
+    K5 = np.zeros((5, 5))
+    K5[:4, :4] = shear_K(k)
+    K5[3, 3] += 50.0
+    K5[3, 4] = K5[4, 3] = -50.0
+    K5[4, 4] = 50.0
+    out = _num(FrameAction().apply({"K": ca.SX(K5)}, ca.SX([1.0 / 1.5]), {"K_parts": parts})["K"])
+    expected = K5.copy()
+    expected[:4, :4] += lateral_K(EI_U, EI_b, H, L, n_cols=2) - shear_K(k)
+    np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
