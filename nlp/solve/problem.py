@@ -35,6 +35,7 @@ import numpy as np
 from nlp.frf.backends import choose as choose_backend
 from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
+from nlp.frf.backends.terms import family_terms
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
 from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
@@ -215,8 +216,10 @@ class UpdatingProblem:
         system = LinearSystem.from_model(self.model, self.damping, self.target)
         if basis is not None:
             system = system.project(basis)
+        terms = (family_terms(self.model, self.params, self.enrichments, self.refs, self.target)
+                 if self.enrichments else None)
         self.evaluator = ev = SparseFRF(system, self.damping, self.params, self.target,
-                                        self.residual)
+                                        self.residual, terms)
         self.matrices_fn = self.system_fn = None
         self.n_res = len(self.target.channels) * (2 if self.residual == "complex" else 1)
 
