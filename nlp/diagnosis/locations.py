@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 __all__ = ["Floor", "floors", "floor_vectors", "floor_count", "case_floors", "story_count",
-           "floor_name", "fe_references"]
+           "floor_name", "fe_references", "located"]
 
 ELEVATION_TOL = 1e-6   # relative: nodes within this of one elevation form one level
 
@@ -124,3 +124,21 @@ def fe_references(model, damping, ground_r):
             "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
             "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,
             "floors": floor_vectors(model, fl)}
+
+
+def located(case, e):
+    """e's location for the findings: its own, with ``where`` (the place in words, node tags
+    and group names) on an FE model; a shear frame's keeps its floor and story numbers."""
+    loc = dict(e.location)
+    model = case.model
+    if not model.dofs:
+        return loc
+    r = getattr(case.target, "ground_r", None)
+    if "floor" in loc:
+        loc["where"] = "at " + floor_name(model, r, loc["floor"])
+    elif "between" in loc and e.family == "hysteretic_damping":
+        loc["where"] = f"in stiffness group {model.alpha_names[loc['between'][1] - 1]}"
+    elif "between" in loc:
+        a, b = loc["between"]
+        loc["where"] = f"between {floor_name(model, r, a)} and {floor_name(model, r, b)}"
+    return loc

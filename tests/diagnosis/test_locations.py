@@ -114,3 +114,20 @@ def test_families_at_levels_on_the_sparse_backend():
     dense = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
                             enrichments=fams, refs=refs, frf_backend="dense")
     np.testing.assert_allclose(dense.channel_frfs(dense.z0, w), ref, rtol=1e-9)
+
+
+def test_findings_name_fe_locations_in_model_terms():
+    from types import SimpleNamespace
+    from nlp.diagnosis.families import HystereticDamping
+    from nlp.diagnosis.locations import located
+    from nlp.diagnosis.units import place
+    from nlp.model.nominal import shear_frame
+    model, row, r = _frame()
+    case = SimpleNamespace(model=model, target=SimpleNamespace(ground_r=r))
+    assert place(located(case, AddedMass(2))) == "at level at 6 m (nodes 20, 21)"
+    assert place(located(case, LocalDamper(1, 0))) == \
+        "between the supports and level at 3 m (nodes 10, 11)"
+    assert place(located(case, HystereticDamping(1))) == "in stiffness group k"
+    shear = SimpleNamespace(model=shear_frame([1.0, 1.0], [1.0, 1.0]), target=SimpleNamespace())
+    assert located(shear, AddedMass(2)) == {"floor": 2}
+    assert place(located(shear, AddedMass(2))) == "at floor 2"
