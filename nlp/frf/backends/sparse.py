@@ -33,7 +33,7 @@ import casadi as ca
 from nlp.frf.backends.allocator import retain_freed_memory
 from nlp.frf.backends.banded import solve_banded_batch, solve_pivoted
 from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
-from nlp.frf.backends.terms import gain_jacobian, gain_rows_into, terms_state
+from nlp.frf.backends.terms import terms_state
 from nlp.frf.forms import POWER
 
 __all__ = ["SparseFRF", "BAND_MAX"]
@@ -262,7 +262,7 @@ class SparseFRF:
             vK=self.K0v + self.VK @ alpha, vM=self.M0v + self.VM @ beta,
             vD=self.VD @ g if self.nD else None,
             b=self.sys.b0 + (self.B_infl.T @ beta if self.nb else 0.0))
-        st.theta, st.gain = theta, np.ones(len(self.power))
+        st.theta = theta
         if self.terms is not None:
             terms_state(st, self.terms, self.VT, self.T)
         return st
@@ -340,22 +340,27 @@ class SparseFRF:
                 out += st.dcz.T @ (self.bil_T.real_form(AT, Lg) + self.terms.b @ Lg.real)
 
     def _channels(self, st, w, jacobian):
-        """(H (n_ch, N), fac (n_ch, N), q, Lam): H = fac E^T q + absolute (Lam None
-        without ``jacobian``)."""
+        """(H (n_ch, N), fac (n_ch, N), q, Lam, dth): H = fac E^T q + absolute, then the output
+        families (F, dth: :mod:`nlp.frf.backends.outputs`; fac includes F); Lam None
+        without ``jacobian``."""
         q, Lam = self._solve(st, w, jacobian)
-        fac = (1j * w[None, :]) ** self.power[:, None] * st.gain[:, None]
-        H = fac * (self.sys.E.T @ q) + (self.absolute * st.gain)[:, None]
-        return H, fac, q, Lam
+        fac = (1j * w[None, :]) ** self.power[:, None]
+        H = fac * (self.sys.E.T @ q) + self.absolute[:, None]
+        dth = {}
+        if self.terms is not None and self.terms.outputs is not None:
+            H, F, dth = self.terms.outputs(st.theta, w, H)
+            fac = fac * F
+        return H, fac, q, Lam, dth
 
     def frf(self, z, w, jacobian=False):
         """Channel FRFs (n_ch, N) at circular frequencies w; with ``jacobian`` also dH/dz."""
         st, w = self._state(z), np.asarray(w, float)
-        H, fac, q, Lam = self._channels(st, w, jacobian)
+        H, fac, q, Lam, dth = self._channels(st, w, jacobian)
         if not jacobian:
             return H
         dH = self._dHq(st, w, q, Lam) * fac[None]
-        if self.terms is not None:
-            gain_jacobian(dH, self.terms, st, H, self.T)
+        for c, d in dth.items():
+            dH[:, c, :] += self.T.T @ d
         return H, dH
 
     def _rows(self, H, Y, s, wt):
@@ -381,7 +386,7 @@ class SparseFRF:
         ch = np.arange(n_res) // (n_res // n_ch)
         st = self._state(z)
         for sl in self._chunks(N, n_res):
-            H, fac, q, Lam = self._channels(st, w[sl], jacobian)
+            H, fac, q, Lam, dth = self._channels(st, w[sl], jacobian)
             R, Gh = self._rows(H, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
             D = None
             if jacobian:
@@ -390,8 +395,9 @@ class SparseFRF:
                 D = (np.zeros((nz, n_res, sl.stop - sl.start)) if Jt is None
                      else Jt[:, sl].transpose(0, 2, 1))
                 self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
-                if self.terms is not None:
-                    gain_rows_into(D, self.terms, st, H, Gh, ch, self.T)
+                for i, c in enumerate(ch):    # the output families' own parameters
+                    if c in dth:
+                        D[:, i] += self.T.T @ (dth[c] * Gh[i]).real
             yield sl, R, D
 
     def residuals(self, z, data, jacobian=True):

@@ -9,7 +9,8 @@ scalar coefficients, on the model's DOFs plus the extra DOFs it appends (after t
 so dZ/dz is again a sum of fixed sparse matrices, and the adjoint sensitivities of
 :mod:`nlp.frf.backends.sparse` carry the families unchanged: dH_c/dz = sum_t dc_t/dz
 lambda_c^T (b_t - f_t P_t q). The c_t and their Jacobian come from one small CasADi
-function of theta. A sensor gain scales the channel's output, H_c -> (1 + g) H_c.
+function of theta. Output-side families (sensor gain, delay, an extra mode) act on the
+channels' outputs (:mod:`nlp.frf.backends.outputs`).
 
 Locations come from ``ref["floors"]``: one weight vector a_f per floor (a DOF group),
 a_f^T u the floor's mean displacement in the excitation direction (e_f on a shear frame).
@@ -22,13 +23,14 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from nlp.frf.backends.outputs import OUTPUT, Outputs
+
 __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_vector",
-           "terms_state", "gain_jacobian", "gain_rows_into"]
+           "terms_state"]
 
 KINDS = ("K", "M", "C", "H")
 STRUCTURAL = ("added_mass", "secondary_oscillator", "local_damper", "hysteretic_damping",
               "nonadjacent_coupling")
-OUTPUT = ("sensor_gain",)
 
 
 def supported(enrichments):
@@ -58,7 +60,7 @@ class Terms:
     kinds : (n_t,) index into KINDS of each term; P : its pattern (n + n_extra square, csc).
     b : (n_t, n + n_extra) csr, the load of each term per unit coefficient.
     coef : casadi Function theta -> (c (n_t,), dc/dtheta (n_t, n_theta)).
-    gains : per channel, the theta indices of the gains acting on it.
+    outputs : the output-side families (:class:`nlp.frf.backends.outputs.Outputs`) or None.
     """
 
     n_extra: int
@@ -66,7 +68,7 @@ class Terms:
     P: tuple
     b: sp.csr_matrix
     coef: ca.Function
-    gains: tuple
+    outputs: Outputs
 
     def factors(self, w):
         """f_t(w) (n_t, N): the frequency factor of each term."""
@@ -167,14 +169,10 @@ def family_terms(model, params, enrichments, refs, target):
     ctx = {"alpha": theta[sa], "model": model}
     r = getattr(target, "ground_r", None)
     bld = _Builder(n, np.ones(n) if r is None else np.asarray(r, float))
-    gains = {}
     k = 0
-    p0 = params.physics_slice().start
     for e in enrichments:
         th_e = th[k:k + len(e.names)]
-        if e.family == "sensor_gain":
-            gains.setdefault(e.channel, []).append(p0 + k)
-        else:
+        if e.family in _TRANSLATE:
             _TRANSLATE[e.family](bld, e, th_e, refs, ctx)
         k += len(e.names)
     size = n + bld.extra
@@ -187,34 +185,17 @@ def family_terms(model, params, enrichments, refs, target):
         r = np.asarray(bld.r)
         b = sp.csr_matrix(np.array([-(A @ r) if KINDS[kd] == "M" else np.zeros(size)
                                     for kd, A in zip(kinds, P)]))
-    chan = []
-    for ch in target.channels:
-        names = [ch.sensor_name] + ([ch.name] if ch.name != ch.sensor_name else [])
-        chan.append(tuple(i for nm in names for i in gains.get(nm, [])))
-    return Terms(n_extra=bld.extra, kinds=kinds, P=P, b=b, coef=coef, gains=tuple(chan))
+    outputs = Outputs(enrichments, params, target.channels)
+    return Terms(n_extra=bld.extra, kinds=kinds, P=P, b=b, coef=coef,
+                 outputs=outputs if outputs.any else None)
 
 
 def terms_state(st, terms, VT, T):
-    """Add to the evaluation state ``st`` (theta, b, gain) the terms at theta: their values
-    per kind on the pattern tv (4, nnz; VT the patterns' values, one column per term), the
-    Jacobian dcz = dc/dz (n_t, n_z) and the load; the channels' gains prod(1 + g)."""
+    """Add to the evaluation state ``st`` (theta, b) the terms at theta: their values per
+    kind on the pattern tv (4, nnz; VT the patterns' values, one column per term), the
+    Jacobian dcz = dc/dz (n_t, n_z) and the load."""
     c, dc = terms.coef(st.theta)
     c = np.asarray(c, float).ravel()
     st.dcz = np.asarray(dc, float).reshape(c.size, T.shape[0]) @ T
     st.tv = np.stack([VT @ np.where(terms.kinds == k, c, 0.0) for k in range(len(KINDS))])
     st.b = st.b + terms.b.T @ c
-    st.gain = np.array([np.prod([1.0 + st.theta[k] for k in idx]) for idx in terms.gains])
-
-
-def gain_jacobian(dH, terms, st, H, T):
-    """dH_c/dz += dg/dz H_c / (1 + g) for every gain g on channel c; dH (n_z, n_ch, N)."""
-    for c, idx in enumerate(terms.gains):
-        for k in idx:
-            dH[:, c, :] += T[k][:, None] * (H[c] / (1.0 + st.theta[k]))[None, :]
-
-
-def gain_rows_into(D, terms, st, H, Gh, ch, T):
-    """D[:, i] += dg/dz Re(Gh_i H_c / (1 + g)) for residual row i of channel c = ch[i]."""
-    for i, c in enumerate(ch):
-        for k in terms.gains[c]:
-            D[:, i] += np.outer(T[k], (Gh[i] * H[c] / (1.0 + st.theta[k])).real)

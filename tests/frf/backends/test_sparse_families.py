@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from nlp.diagnosis.families import (AddedMass, HystereticDamping, LocalDamper,
-                                    NonadjacentCoupling, SecondaryOscillator, SensorGain,
-                                    extend_parameters)
+from nlp.diagnosis.families import (AddedMass, ExtraMode, HystereticDamping, LocalDamper,
+                                    NonadjacentCoupling, SecondaryOscillator, SensorDelay,
+                                    SensorGain, extend_parameters)
 from nlp.frf.backends import choose
 from nlp.model.damping import RayleighDamping
 from nlp.model.nominal import shear_frame, shear_stiffness
@@ -32,9 +32,14 @@ CASES = {
     "hysteretic_story": ([HystereticDamping(2)], [[0.05]]),
     "coupling": ([NonadjacentCoupling(1, 3)], [[300.0]]),
     "gain": ([SensorGain("c2")], [[0.1]]),
-    "several": ([NonadjacentCoupling(2, 4), SecondaryOscillator(2, 4.0), HystereticDamping(),
-                 AddedMass(4), SensorGain("c1")],
-                [[-200.0], [0.03, 4.4, 0.05], [0.02], [0.3], [-0.05]]),
+    "delay": ([SensorDelay("c3")], [[4.0]]),
+    "extra_mode": ([ExtraMode(9.0, ("c1", "c4"), (0, 2), (0.01, 2.0))],
+                   [[9.1, 0.02, 0.3, -0.2]]),
+    "several": ([ExtraMode(9.0, ("c1", "c2"), (0, 2), (0.01, 2.0)), NonadjacentCoupling(2, 4),
+                 SecondaryOscillator(2, 4.0), HystereticDamping(), AddedMass(4), SensorGain("c1"),
+                 SensorDelay("c1")],
+                [[9.1, 0.02, 0.3, -0.2], [-200.0], [0.03, 4.4, 0.05], [0.02], [0.3], [-0.05],
+                 [2.0]]),
 }
 
 
