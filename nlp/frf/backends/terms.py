@@ -29,6 +29,7 @@ __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_v
            "terms_state"]
 
 KINDS = ("K", "M", "C", "H")
+MU_MIN = 1e-12   # an appendage's smallest mass ratio on the sparse backend (see _appendage)
 STRUCTURAL = ("added_mass", "secondary_oscillator", "local_damper", "hysteretic_damping",
               "nonadjacent_coupling")
 
@@ -106,8 +107,10 @@ def _added_mass(bld, e, th, ref, ctx):
 
 def _appendage(bld, e, th, ref, ctx):
     """The oscillator's DOF x joined to the floor's mean displacement a_f^T u; a rigid ground
-    motion carries it with the floor (r_x = a_f^T r)."""
-    ms = th[0] * ref["m_ref"]
+    motion carries it with the floor (r_x = a_f^T r). Its mass ratio is floored at MU_MIN:
+    every entry of its DOF's row scales with its mass, so a massless appendage (a family at
+    its null value) would leave Z singular, while one of MU_MIN has no measurable effect."""
+    ms = (th[0] + MU_MIN) * ref["m_ref"]
     ws = 2 * math.pi * th[1]
     a = floor_vector(ref, e.floor, bld.n)
     x = bld.new_dof(a @ np.asarray(bld.r[:bld.n]))

@@ -212,3 +212,12 @@ def test_tall_frame_banded_and_superlu_paths(monkeypatch, band_max):
         e[j] = 1e-4  # the banded solve is good to ~1e-12: a wide step keeps FD noise below 1e-8
         fd = (pr.residuals(z + e)[0] - pr.residuals(z - e)[0]) / 2e-4
         np.testing.assert_allclose(J[:, j], fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max())
+
+
+def test_massless_appendage_is_no_appendage():
+    """At its null value (mass ratio 0) an appendage leaves the FRF of the frame without it
+    (the extra DOF's row would vanish: the sparse backend keeps it solvable)."""
+    pr = _problem([SecondaryOscillator(3, 6.0)], [[0.0, 5.5, 0.03]], "sparse")
+    bare = _problem([], None, "sparse")
+    z = np.asarray(pr.z0, float)
+    np.testing.assert_allclose(pr.channel_frfs(z, W), bare.channel_frfs(z[:-3], W), rtol=1e-9)
