@@ -35,7 +35,7 @@ import numpy as np
 from nlp.frf.backends import choose as choose_backend
 from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
-from nlp.frf.backends.terms import family_terms
+from nlp.frf.backends.terms import family_terms, with_terms
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
 from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
@@ -314,9 +314,11 @@ class UpdatingProblem:
     def system_matrices(self, z):
         """Numeric M, K, C of the whole system at z, with the DOFs the added physics appends
         (an appendage's, a flexible base's) after the model's; the model's own M, K, C
-        (:meth:`matrices`) when the FRF backend is numeric."""
+        (:meth:`matrices`, with the families' terms) when the FRF backend is numeric."""
         if self.system_fn is None:
-            return self.matrices(z)
+            terms = getattr(getattr(self, "evaluator", None), "terms", None)
+            M, K, C = self.matrices(z)
+            return (M, K, C) if terms is None else with_terms(terms, self.theta(z), M, K, C)
         return tuple(np.asarray(A) for A in self.system_fn(np.asarray(z, float)))
 
     def theta(self, z):

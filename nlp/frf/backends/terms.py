@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from nlp.frf.backends.outputs import OUTPUT, Outputs
 
 __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_vector",
-           "terms_state"]
+           "terms_state", "with_terms"]
 
 KINDS = ("K", "M", "C", "H")
 MU_MIN = 1e-12   # an appendage's smallest mass ratio on the sparse backend (see _appendage)
@@ -202,3 +202,15 @@ def terms_state(st, terms, VT, T):
     st.dcz = np.asarray(dc, float).reshape(c.size, T.shape[0]) @ T
     st.tv = np.stack([VT @ np.where(terms.kinds == k, c, 0.0) for k in range(len(KINDS))])
     st.b = st.b + terms.b.T @ c
+
+
+def with_terms(terms, theta, M, K, C):
+    """Dense M, K, C of the whole system at theta: the model's (n, n) padded with the extra
+    DOFs, plus the terms of each kind (the hysteretic ones are not among them)."""
+    c = np.asarray(terms.coef(theta)[0], float).ravel()
+    size = M.shape[0] + terms.n_extra
+    out = [np.pad(np.asarray(A, float), (0, terms.n_extra)) for A in (M, K, C)]
+    for kind, P, ct in zip(terms.kinds, terms.P, c):
+        if KINDS[kind] != "H":
+            out[("M", "K", "C").index(KINDS[kind])] += ct * P.toarray().reshape(size, size)
+    return tuple(out)

@@ -221,3 +221,13 @@ def test_massless_appendage_is_no_appendage():
     bare = _problem([], None, "sparse")
     z = np.asarray(pr.z0, float)
     np.testing.assert_allclose(pr.channel_frfs(z, W), bare.channel_frfs(z[:-3], W), rtol=1e-9)
+
+
+def test_whole_system_matrices_equal_the_dense_backend():
+    """M, K, C with the appended DOFs (an appendage's modes are judged on them)."""
+    fams, values = CASES["several"]
+    dense, sparse = _problem(fams, values, "dense"), _problem(fams, values, "sparse")
+    z = _z(dense)
+    for Ad, As in zip(dense.system_matrices(z), sparse.system_matrices(z)):
+        assert As.shape == (5, 5)
+        np.testing.assert_allclose(As, Ad, rtol=1e-12, atol=1e-12 * np.abs(Ad).max())
