@@ -12,7 +12,7 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, Hys
                                     LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
-from nlp.diagnosis.locations import floor_count, story_count
+from nlp.diagnosis.locations import floor_count, is_fe, story_count
 from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
 from nlp.solve.identify import tangent_basis
 
@@ -29,7 +29,7 @@ def candidates(case):
     stories (an FE model's stiffness groups); the flexible base and frame action are
     shear-frame families."""
     n = floor_count(case)
-    fe = bool(case.model.dofs)
+    fe = is_fe(case.model)
     out = [AddedMass(i) for i in range(1, n + 1)]
     if not fe:
         out.append(BaseFlexibility())

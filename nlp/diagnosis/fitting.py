@@ -13,7 +13,7 @@ import numpy as np
 from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
 from nlp.diagnosis.families import extend_parameters, references
-from nlp.diagnosis.locations import fe_references
+from nlp.diagnosis.locations import fe_references, is_fe
 from nlp.errors import SearchFailed
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
@@ -134,7 +134,7 @@ def best_fit(problem, z0_list):
 def case_references(case):
     """Reference values of the added physics (nlp.diagnosis.families.references) for case;
     an FE model's come from its floors (nlp.diagnosis.locations.fe_references)."""
-    if case.model.dofs:
+    if is_fe(case.model):
         return fe_references(case.model, case.damping, getattr(case.target, "ground_r", None))
     return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 

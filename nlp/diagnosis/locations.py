@@ -14,10 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Floor", "floors", "floor_vectors", "floor_count", "case_floors", "story_count",
+__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "floor_count", "case_floors", "story_count",
            "floor_name", "fe_references", "located"]
 
 ELEVATION_TOL = 1e-6   # relative: nodes within this of one elevation form one level
+
+
+def is_fe(model):
+    """Whether ``model`` is an imported FE model (rows are node DOFs), not a shear frame."""
+    return bool(getattr(model, "dofs", ()))
 
 
 @dataclass(frozen=True)
@@ -41,7 +46,7 @@ def _direction(model, ground_r):
 def floors(model, ground_r=None):
     """The floors of ``model``: a shear frame's rows, or the node levels of an FE model
     (nodes without coordinates each their own level)."""
-    if not model.dofs:
+    if not is_fe(model):
         return [Floor(f"floor {i + 1}", (), (i,)) for i in range(model.n)]
     d = _direction(model, ground_r)
     M = sp.csr_matrix(model.M0)
@@ -93,18 +98,18 @@ def floor_count(case):
 
 def case_floors(case):
     """The case's floors (:func:`floors`) along its excitation."""
-    return floors(case.model, getattr(case.target, "ground_r", None))
+    return floors(case.model, getattr(getattr(case, "target", None), "ground_r", None))
 
 
 def story_count(model):
     """Stories of a shear frame (its rows), stiffness groups of an FE model."""
-    return len(model.K_infl) if model.dofs else model.n
+    return len(model.K_infl) if is_fe(model) else model.n
 
 
 def floor_name(model, ground_r, floor):
     """The name of floor ``floor`` (1-based; 0 is the ground)."""
     if floor == 0:
-        return "the ground" if not model.dofs else "the supports"
+        return "the supports" if is_fe(model) else "the ground"
     return floors(model, ground_r)[floor - 1].name
 
 
@@ -131,9 +136,9 @@ def located(case, e):
     and group names) on an FE model; a shear frame's keeps its floor and story numbers."""
     loc = dict(e.location)
     model = case.model
-    if not model.dofs:
+    if not is_fe(model):
         return loc
-    r = getattr(case.target, "ground_r", None)
+    r = getattr(getattr(case, "target", None), "ground_r", None)
     if "floor" in loc:
         loc["where"] = "at " + floor_name(model, r, loc["floor"])
     elif "between" in loc and e.family == "hysteretic_damping":
