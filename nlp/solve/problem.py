@@ -218,6 +218,9 @@ class UpdatingProblem:
             system = system.project(basis)
         terms = (family_terms(self.model, self.params, self.enrichments, self.refs, self.target)
                  if self.enrichments else None)
+        self.family_terms = terms   # on the model's own DOFs (system_matrices)
+        if terms is not None and basis is not None:
+            terms = terms.project(basis)
         self.evaluator = ev = SparseFRF(system, self.damping, self.params, self.target,
                                         self.residual, terms)
         self.matrices_fn = self.system_fn = None
@@ -316,7 +319,7 @@ class UpdatingProblem:
         (an appendage's, a flexible base's) after the model's; the model's own M, K, C
         (:meth:`matrices`, with the families' terms) when the FRF backend is numeric."""
         if self.system_fn is None:
-            terms = getattr(getattr(self, "evaluator", None), "terms", None)
+            terms = getattr(self, "family_terms", None)
             M, K, C = self.matrices(z)
             return (M, K, C) if terms is None else with_terms(terms, self.theta(z), M, K, C)
         return tuple(np.asarray(A) for A in self.system_fn(np.asarray(z, float)))

@@ -13,8 +13,9 @@
 ``choose`` picks one from the case key ``model.frf_backend`` (auto | dense |
 sparse | reduced): ``auto`` is dense up to ``DENSE_MAX`` DOFs, sparse above. Added
 physics (:mod:`nlp.diagnosis.families`) is carried by the sparse backend as sparse
-terms (:mod:`.terms`) above ``ENRICHED_DENSE_MAX`` DOFs; below, and for families
-the terms do not carry, by the dense one. The reduced backend carries none.
+terms (:mod:`.terms`) above ``ENRICHED_DENSE_MAX`` DOFs (or when sparse or reduced is
+asked for; the reduced backend projects them on its basis); below, and for families the
+terms do not carry, by the dense one.
 """
 
 from nlp.frf.backends.terms import supported
@@ -33,9 +34,6 @@ def choose(requested, n, enrichments=()):
     if requested not in BACKENDS:
         raise ValueError(f"frf_backend must be one of {BACKENDS}, got {requested!r}")
     if enrichments:
-        if requested == "reduced":
-            raise ValueError("the reduced FRF backend does not carry added physics "
-                             "(diagnosis families); use frf_backend sparse")
         if not supported(enrichments) or (requested == "auto" and n <= ENRICHED_DENSE_MAX):
             return "dense"
         return "sparse" if requested == "auto" else requested

@@ -71,6 +71,14 @@ class Terms:
     coef: ca.Function
     outputs: Outputs
 
+    def project(self, Psi):
+        """The same terms on q = W eta, W = diag(Psi, I): the model's DOFs on the reduced
+        basis Psi (n, m), the appended DOFs kept (the reduced backend)."""
+        W = sp.block_diag([sp.csc_matrix(Psi), sp.identity(self.n_extra)], format="csc")
+        P = tuple(sp.csc_matrix(W.T @ (A @ W)) for A in self.P)
+        return Terms(n_extra=self.n_extra, kinds=self.kinds, P=P, b=sp.csr_matrix(self.b @ W),
+                     coef=self.coef, outputs=self.outputs)
+
     def factors(self, w):
         """f_t(w) (n_t, N): the frequency factor of each term."""
         w = np.asarray(w, float)

@@ -149,8 +149,26 @@ def test_choose_keeps_sparse_for_large_models_with_families():
     assert choose("auto", 120, fams) == "sparse"
     assert choose("sparse", 4, fams) == "sparse"
     assert choose("dense", 120, fams) == "dense"
-    with pytest.raises(ValueError, match="reduced"):
-        choose("reduced", 120, fams)
+    assert choose("reduced", 120, fams) == "reduced"
+
+
+def test_reduced_backend_projects_the_terms():
+    """On a complete basis (n vectors: the projection is a change of coordinates) the reduced
+    backend's FRF and Jacobian with families equal the sparse backend's."""
+    fams, values = CASES["several"]
+    sparse = _problem(fams, values, "sparse")
+    damping = RayleighDamping(A0, A1)
+    Psi = np.linalg.qr(np.random.default_rng(3).standard_normal((4, 4)))[0] * 0.7
+    red = UpdatingProblem(shear_frame(m, k), damping, sparse.params, sparse.target,
+                          solver=SolverConfig(compile=False), enrichments=fams, refs=REF,
+                          frf_backend="reduced", basis=Psi)
+    assert red.backend == "reduced"
+    z = _z(sparse)
+    np.testing.assert_allclose(red.channel_frfs(z, W), sparse.channel_frfs(z, W), rtol=1e-9)
+    np.testing.assert_allclose(red.residuals(z)[1], sparse.residuals(z)[1], rtol=1e-7,
+                               atol=1e-9 * np.abs(sparse.residuals(z)[1]).max())
+    for Ar, As in zip(red.system_matrices(z), sparse.system_matrices(z)):
+        np.testing.assert_allclose(Ar, As, rtol=1e-12)
 
 
 def _tall(n):
