@@ -135,7 +135,9 @@ def case_references(case):
     """Reference values of the added physics (nlp.diagnosis.families.references) for case;
     an FE model's come from its floors (nlp.diagnosis.locations.fe_references)."""
     if is_fe(case.model):
-        return fe_references(case.model, case.damping, getattr(case.target, "ground_r", None))
+        tg = case.target
+        return fe_references(case.model, case.damping, tg.ground_r,
+                             tuple(ch.dof for ch in tg.channels))
     return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 
 

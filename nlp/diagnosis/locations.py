@@ -43,16 +43,21 @@ def _direction(model, ground_r):
     return 1
 
 
-def floors(model, ground_r=None):
-    """The floors of ``model``: a shear frame's rows, or the node levels of an FE model
-    (nodes without coordinates each their own level)."""
+def floors(model, ground_r=None, channel_rows=()):
+    """The floors of ``model``: a shear frame's rows, or the node levels of an FE model. A
+    model without node coordinates (a matrix export) has no levels to find: its locations
+    are then the channels' DOFs that carry mass (``channel_rows``), each its own."""
     if not is_fe(model):
         return [Floor(f"floor {i + 1}", (), (i,)) for i in range(model.n)]
-    d = _direction(model, ground_r)
     M = sp.csr_matrix(model.M0)
     diag = M.diagonal()
-    rows = {nd: i for i, (nd, dof) in enumerate(model.dofs) if dof == d and diag[i] > 0}
     coords = dict(getattr(model, "node_coords", ()) or ())
+    if not coords:
+        seen = dict.fromkeys(i for i in channel_rows if 0 <= i < model.n and diag[i] > 0)
+        return [Floor(f"node {model.dofs[i][0]} (DOF {model.dofs[i][1]})", (model.dofs[i][0],),
+                      (i,)) for i in seen]
+    d = _direction(model, ground_r)
+    rows = {nd: i for i, (nd, dof) in enumerate(model.dofs) if dof == d and diag[i] > 0}
     ndm = model.ndm or (len(next(iter(coords.values()))) if coords else 1)
     levels = {}
     for nd in rows:
@@ -98,7 +103,14 @@ def floor_count(case):
 
 def case_floors(case):
     """The case's floors (:func:`floors`) along its excitation."""
-    return floors(case.model, getattr(getattr(case, "target", None), "ground_r", None))
+    return floors(case.model, *_along(case))
+
+
+def _along(case):
+    """(ground_r, channel rows) of a case, for :func:`floors`."""
+    tg = getattr(case, "target", None)
+    return (getattr(tg, "ground_r", None),
+            tuple(ch.dof for ch in getattr(tg, "channels", ())))
 
 
 def story_count(model):
@@ -106,19 +118,22 @@ def story_count(model):
     return len(model.K_infl) if is_fe(model) else model.n
 
 
-def floor_name(model, ground_r, floor):
+def floor_name(model, ground_r, floor, channel_rows=()):
     """The name of floor ``floor`` (1-based; 0 is the ground)."""
     if floor == 0:
         return "the supports" if is_fe(model) else "the ground"
-    return floors(model, ground_r)[floor - 1].name
+    return floors(model, ground_r, channel_rows)[floor - 1].name
 
 
-def fe_references(model, damping, ground_r):
+def fe_references(model, damping, ground_r, channel_rows=()):
     """Reference magnitudes of an FE model's families: a floor's mass m_ref [kg] (the
     mass on its rows), a story's stiffness k_ref [N/m] (half the force per unit uniform
     motion of one floor, others held: two stories resist it) and damping c_ref [N s/m]
     (the same motion's damping force), each a mean over floors; and the weight vectors."""
-    fl = floors(model, ground_r)
+    fl = floors(model, ground_r, channel_rows)
+    if not fl:
+        raise ValueError("an FE model without node coordinates needs channels at DOFs that "
+                         "carry mass to locate added physics at")
     e = [np.bincount(list(f.rows), minlength=model.n).astype(float) for f in fl]
     M, K = sp.csr_matrix(model.M0), sp.csr_matrix(model.K0)
     try:
@@ -138,12 +153,13 @@ def located(case, e):
     model = case.model
     if not is_fe(model):
         return loc
-    r = getattr(getattr(case, "target", None), "ground_r", None)
+    r, rows = _along(case)
     if "floor" in loc:
-        loc["where"] = "at " + floor_name(model, r, loc["floor"])
+        loc["where"] = "at " + floor_name(model, r, loc["floor"], rows)
     elif "between" in loc and e.family == "hysteretic_damping":
         loc["where"] = f"in stiffness group {model.alpha_names[loc['between'][1] - 1]}"
     elif "between" in loc:
         a, b = loc["between"]
-        loc["where"] = f"between {floor_name(model, r, a)} and {floor_name(model, r, b)}"
+        loc["where"] = (f"between {floor_name(model, r, a, rows)} and "
+                        f"{floor_name(model, r, b, rows)}")
     return loc

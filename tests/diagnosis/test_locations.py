@@ -131,3 +131,13 @@ def test_findings_name_fe_locations_in_model_terms():
     shear = SimpleNamespace(model=shear_frame([1.0, 1.0], [1.0, 1.0]), target=SimpleNamespace())
     assert located(shear, AddedMass(2)) == {"floor": 2}
     assert place(located(shear, AddedMass(2))) == "at floor 2"
+
+
+def test_without_coordinates_the_channels_are_the_locations():
+    """A matrix export has no node coordinates: each channel's DOF with mass is a location."""
+    from dataclasses import replace
+    model, row, r = _frame()
+    bare = replace(model, node_coords=())
+    fl = floors(bare, r, (row[(21, 1)], row[(10, 1)], row[(21, 1)]))
+    assert [f.rows for f in fl] == [(row[(21, 1)],), (row[(10, 1)],)]
+    assert fl[0].name == "node 21 (DOF 1)"
