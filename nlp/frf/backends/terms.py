@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from nlp.frf.backends.outputs import OUTPUT, Outputs
 
 __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_vector",
-           "terms_state", "with_terms"]
+           "terms_state", "with_terms", "backend_terms"]
 
 KINDS = ("K", "M", "C", "H")
 MU_MIN = 1e-12   # an appendage's smallest mass ratio on the sparse backend (see _appendage)
@@ -222,3 +222,12 @@ def with_terms(terms, theta, M, K, C):
         if KINDS[kind] != "H":
             out[("M", "K", "C").index(KINDS[kind])] += ct * P.toarray().reshape(size, size)
     return tuple(out)
+
+
+def backend_terms(model, params, enrichments, refs, target, basis=None):
+    """(terms on the model's own DOFs, terms the backend runs: projected on ``basis`` when
+    reduced); (None, None) without families."""
+    if not enrichments:
+        return None, None
+    full = family_terms(model, params, enrichments, refs, target)
+    return full, (full if basis is None else full.project(basis))
