@@ -12,6 +12,7 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, Hys
                                     LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
+from nlp.diagnosis.locations import floor_count, is_fe, story_count
 from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
 from nlp.solve.identify import tangent_basis
 
@@ -23,14 +24,20 @@ NEAR_RESONANCE = 0.1   # relative distance from a fitted resonance where any osc
 
 def candidates(case):
     """Every family x location that the data could reveal, but the secondary
-    oscillator (scanned separately; sensor delay needs the phase)."""
-    n = case.model.n
+    oscillator (scanned separately; sensor delay needs the phase). Locations are the
+    model's floors (an FE model's mass-carrying node levels, nlp.diagnosis.locations) and
+    stories (an FE model's stiffness groups); the flexible base and frame action are
+    shear-frame families."""
+    n = floor_count(case)
+    fe = is_fe(case.model)
     out = [AddedMass(i) for i in range(1, n + 1)]
-    out.append(BaseFlexibility())
+    if not fe:
+        out.append(BaseFlexibility())
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
-    out += [HystereticDamping()] + [HystereticDamping(s) for s in range(1, n + 1)]
+    out += [HystereticDamping()] + [HystereticDamping(s)
+                                    for s in range(1, story_count(case.model) + 1)]
     out += [NonadjacentCoupling(i, j) for i in range(1, n + 1) for j in range(i + 2, n + 1)]
-    if n >= 2:
+    if n >= 2 and not fe:
         out.append(FrameAction())
     # one per sensor: tests fitted jointly share their sensors (nlp.case.joint)
     sensors = list(dict.fromkeys(ch.sensor_name for ch in case.channels))
@@ -115,7 +122,7 @@ def scan_secondary(case, target, current, z_cur, n_grid=48, resonances=()):
     peaks = [float(np.mean(f_sel[g])) for g in window_bands(case.selected)]
     near = np.array([any(abs(f0 / fp - 1.0) <= NEAR_RESONANCE for fp in peaks) for f0 in grid])
     out = []
-    for floor in range(1, case.model.n + 1):
+    for floor in range(1, floor_count(case) + 1):
         if _has_appendage(current, floor):
             continue
         e = SecondaryOscillator(floor, float(grid[0]))
@@ -138,7 +145,7 @@ def hot_appendages(case, target, current, z_cur, hot, resonances=()):
     next to a resonance, far from the appendage's own (see docs/method/diagnosis.md)."""
     out = []
     for h in hot:
-        for floor in range(1, case.model.n + 1):
+        for floor in range(1, floor_count(case) + 1):
             if _has_appendage(current, floor):
                 continue
             e = SecondaryOscillator(floor, float(h), resonances)

@@ -19,6 +19,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from nlp.frf.backends.terms import floor_vector
 from nlp.model.parameters import Parameter
 
 __all__ = ["FAMILIES", "FrameAction", "frame_action_dK", "condensed_dK", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
@@ -33,6 +34,15 @@ def _spring(A, i, j, v):
             if a is not None and b is not None:
                 A[a, b] = A[a, b] + sa * sb * v
     return A
+
+
+def _rank_one(A, v, c):
+    """A + c v v^T for a numeric v (a floor's weights, :func:`floor_vector`)."""
+    return ca.SX(A) + c * ca.DM(np.outer(v, v))
+
+
+def _floors(ref, n, *fl):
+    return [floor_vector(ref, f, n) for f in fl]
 
 
 def _augment(A, couple, diag):
@@ -61,10 +71,9 @@ class AddedMass:
         return {"floor": self.floor}
 
     def apply(self, sys, th, ref):
-        i = self.floor - 1
         M = ca.SX(sys["M"])
-        M[i, i] = M[i, i] + th[0]
-        return {**sys, "M": M}
+        a = floor_vector(ref, self.floor, M.shape[0])
+        return {**sys, "M": M + th[0] * ca.DM(np.diag(a))}  # dm spread over the floor
 
 
 @dataclass(frozen=True)
@@ -148,17 +157,13 @@ class SecondaryOscillator:
         m_ref = ref["m_ref"]
         M, K, C, Kh = (ca.SX(sys[k]) for k in ("M", "K", "C", "Kh"))
         n = M.shape[0]
-        i = self.floor - 1
+        a = floor_vector(ref, self.floor, n)   # it hangs from the floor's mean motion
         ms = th[0] * m_ref
         ws = 2 * math.pi * th[1]
         ks, cs = ms * ws**2, 2 * th[2] * ms * ws
-        e = ca.DM.zeros(n)
-        e[i] = 1
 
         def attach(A, v):
-            A = ca.SX(A)
-            A[i, i] = A[i, i] + v
-            return _augment(A, -v * e, v)
+            return _augment(_rank_one(A, a, v), -v * ca.DM(a), v)
 
         return {"M": _augment(M, ca.SX.zeros(n), ms), "K": attach(K, ks), "C": attach(C, cs),
                 "Kh": _augment(Kh, ca.SX.zeros(n), 0)}
@@ -186,8 +191,8 @@ class LocalDamper:
                 "null": [0.0]}
 
     def apply(self, sys, th, ref):
-        j = None if self.j == 0 else self.j - 1
-        return {**sys, "C": _spring(sys["C"], self.i - 1, j, th[0])}
+        a, b = _floors(ref, sys["C"].shape[0], self.i, self.j)
+        return {**sys, "C": _rank_one(sys["C"], a - b, th[0])}
 
 
 @dataclass(frozen=True)
@@ -241,7 +246,8 @@ class NonadjacentCoupling:
                 "null": [0.0]}
 
     def apply(self, sys, th, ref):
-        return {**sys, "K": _spring(sys["K"], self.i - 1, self.j - 1, th[0])}
+        a, b = _floors(ref, sys["K"].shape[0], self.i, self.j)
+        return {**sys, "K": _rank_one(sys["K"], a - b, th[0])}
 
 
 @dataclass(frozen=True)

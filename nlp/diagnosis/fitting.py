@@ -13,6 +13,7 @@ import numpy as np
 from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
 from nlp.diagnosis.families import extend_parameters, references
+from nlp.diagnosis.locations import fe_references, is_fe
 from nlp.errors import SearchFailed
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
@@ -133,7 +134,12 @@ def best_fit(problem, z0_list):
 
 
 def case_references(case):
-    """Reference values of the added physics (nlp.diagnosis.families.references) for case."""
+    """Reference values of the added physics (nlp.diagnosis.families.references) for case;
+    an FE model's come from its floors (nlp.diagnosis.locations.fe_references)."""
+    if is_fe(case.model):
+        tg = case.target
+        return fe_references(case.model, case.damping, tg.ground_r,
+                             tuple(ch.dof for ch in tg.channels))
     return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from nlp.diagnosis.evidence import BIC_ACCEPT, dispersion
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, case_references, normalised,
                                    quasi_se, with_values)
+from nlp.diagnosis.locations import located
 from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
 from nlp.output.progress import stage
 from nlp.solve.executors import Setup, make_executor
@@ -61,7 +62,7 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
                    for b in (lo_, hi_) if b != 0.0)
     rh = normalised(pr, res.z, case, held, sig_held)
     se = quasi_se(pr, res.z)[0][-k:]
-    return {"physics": e.family, "location": e.location, "enrichment": e,
+    return {"physics": e.family, "location": located(case, e), "enrichment": e,
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),

@@ -155,6 +155,8 @@ def place(loc):
     """Where a finding acts, in words: 'at floor 3', 'in story 2 (between floor 1 and
     floor 2)', 'on channel a2', 'in the whole structure'."""
     loc = loc or {}
+    if "where" in loc:      # an FE model's location in its own terms (nlp.diagnosis.locations)
+        return loc["where"]
     if "floor" in loc:
         return f"at floor {loc['floor']}"
     if "between" in loc:

@@ -39,6 +39,9 @@ class StructuralModel:
         shear frames, whose rows are floors.
     ndm : int, optional
         Spatial dimension of an imported model (2 or 3), for DOF names.
+    node_coords : tuple of (int, tuple of float)
+        Coordinates [m] of the nodes of an imported model that knows them (OpenSees),
+        for locations in model terms (:mod:`nlp.diagnosis.locations`); else empty.
 
     The matrices may be ``scipy.sparse`` (imported models); :meth:`dense`
     gives a copy with ndarrays.
@@ -55,6 +58,7 @@ class StructuralModel:
     dof_names: tuple = field(default=())
     dofs: tuple = field(default=())
     ndm: int = None
+    node_coords: tuple = field(default=())
 
     @property
     def n(self):

@@ -35,6 +35,7 @@ import numpy as np
 from nlp.frf.backends import choose as choose_backend
 from nlp.frf.backends.sparse import SparseFRF
 from nlp.frf.backends.system import LinearSystem
+from nlp.frf.backends.terms import backend_terms, with_terms
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
 from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
@@ -213,10 +214,12 @@ class UpdatingProblem:
     def _build_numeric(self, basis):
         """Sparse or reduced backend: r and J from SparseFRF, the NLP's functions as callbacks."""
         system = LinearSystem.from_model(self.model, self.damping, self.target)
+        self.family_terms, terms = backend_terms(self.model, self.params, self.enrichments,
+                                                 self.refs, self.target, basis)
         if basis is not None:
             system = system.project(basis)
         self.evaluator = ev = SparseFRF(system, self.damping, self.params, self.target,
-                                        self.residual)
+                                        self.residual, terms)
         self.matrices_fn = self.system_fn = None
         self.n_res = len(self.target.channels) * (2 if self.residual == "complex" else 1)
 
@@ -311,9 +314,11 @@ class UpdatingProblem:
     def system_matrices(self, z):
         """Numeric M, K, C of the whole system at z, with the DOFs the added physics appends
         (an appendage's, a flexible base's) after the model's; the model's own M, K, C
-        (:meth:`matrices`) when the FRF backend is numeric."""
+        (:meth:`matrices`, with the families' terms) when the FRF backend is numeric."""
         if self.system_fn is None:
-            return self.matrices(z)
+            M, K, C = self.matrices(z)
+            terms = getattr(self, "family_terms", None)
+            return (M, K, C) if terms is None else with_terms(terms, self.theta(z), M, K, C)
         return tuple(np.asarray(A) for A in self.system_fn(np.asarray(z, float)))
 
     def theta(self, z):

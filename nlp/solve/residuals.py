@@ -127,11 +127,12 @@ class _OnChannel:
 
 def load_vector(target, Ma, n, force_dof=None):
     """Right-hand side b: -M r for ground motion (Eqn 16, r the influence vector on the
-    model's n DOFs, 0 on appended ones), a unit force at ``force_dof`` (default the
+    model's n DOFs, 1 on appended ones: an appendage or a base moves in the excitation's
+    direction, carried rigidly by the ground), a unit force at ``force_dof`` (default the
     target's) otherwise."""
     if target.excitation == "ground":
         r = ca.DM.ones(Ma.shape[0]) if target.ground_r is None else \
-            ca.vertcat(ca.DM(target.ground_r), ca.DM.zeros(Ma.shape[0] - n))
+            ca.vertcat(ca.DM(target.ground_r), ca.DM.ones(Ma.shape[0] - n))
         return -ca.mtimes(Ma, r)  # Eqn 16, with r for models with several DOFs per node
     b = ca.DM.zeros(Ma.shape[0])
     b[target.force_dof if force_dof is None else force_dof] = 1

@@ -33,6 +33,7 @@ import casadi as ca
 from nlp.frf.backends.allocator import retain_freed_memory
 from nlp.frf.backends.banded import solve_banded_batch, solve_pivoted
 from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
+from nlp.frf.backends.terms import terms_state
 from nlp.frf.forms import POWER
 
 __all__ = ["SparseFRF", "BAND_MAX"]
@@ -60,9 +61,15 @@ class SparseFRF:
     params : nlp.model.parameters.ParameterSet
     target : nlp.solve.problem.Target (channels' outputs and the frequency grid)
     residual : {"log_magnitude", "magnitude", "relative_magnitude", "complex"}
+    terms : nlp.frf.backends.terms.Terms, optional
+        Added physics: sparse terms on the model's DOFs and the extra DOFs it appends.
     """
 
-    def __init__(self, system, damping, params, target, residual):
+    def __init__(self, system, damping, params, target, residual, terms=None):
+        if terms is not None:
+            system = system.padded(terms.n_extra)
+        self.terms = terms
+        self.nT = 0 if terms is None else len(terms.P)
         self.sys, self.params, self.residual = system, params, residual
         self.n = n = system.n
         self.T, self.c = params.T, params.c
@@ -82,12 +89,16 @@ class SparseFRF:
         out = ca.vertcat(*parts)
         self._damp = ca.Function("damping_structure", [th], [out, ca.jacobian(out, th)])
         # the pattern of Z: K0, M0, K_r, M_r, D_j
-        mats = [system.K0, system.M0, *system.K_infl, *system.M_infl, *system.dashpots]
+        mats = [system.K0, system.M0, *system.K_infl, *system.M_infl, *system.dashpots,
+                *(terms.P if self.nT else ())]
         self.pat = Pattern(n, mats)
         na, nb = len(system.K_infl), len(system.M_infl)
         self.VK = self.pat.values(2, 2 + na)
         self.VM = self.pat.values(2 + na, 2 + na + nb)
-        self.VD = self.pat.values(2 + na + nb, len(mats))
+        self.VD = self.pat.values(2 + na + nb, len(mats) - self.nT)
+        self.VT = self.pat.values(len(mats) - self.nT, len(mats))
+        self.bil_T = Bilinear(terms.P, n) if self.nT else None
+        self.T_seg = self.bil_T.S.tocsc().indices if self.nT and self.bil_T.A is not None else None
         self.K0v, self.M0v = self.pat.value(0), self.pat.value(1)
         # Sensitivities per decision variable z_j, not per parameter: dZ/dz_j uses the
         # aggregated matrices sum_i T_ij K_i and sum_i T_ij M_i (Eqns 23-24 are linear), so a
@@ -165,8 +176,13 @@ class SparseFRF:
         im = vK * (w * st.cK) + vM * (w * st.cM)
         if self.nD:
             im += w * st.vD[e, None]
+        re = vK + vM * (-(w ** 2))
+        if self.nT:  # the families' terms: K - w^2 M real, w C + Kh imaginary
+            tv = st.tv[:, e]
+            re = re + tv[0][:, None] - tv[1][:, None] * w ** 2
+            im = im + tv[2][:, None] * w + tv[3][:, None]
         L = np.zeros(((self.bw + 1) * self.n, w.size), complex)
-        L.real[self.band_index] = vK + vM * (-(w ** 2))
+        L.real[self.band_index] = re
         L.imag[self.band_index] = im
         return L.reshape(self.bw + 1, self.n, -1)
 
@@ -241,11 +257,15 @@ class SparseFRF:
         m = self.m
         S = d_out[2:2 + m * m].reshape(m, m, order="F") if m else None
         g = d_out[2 + m * m:]
-        return SimpleNamespace(
+        st = SimpleNamespace(
             cM=d_out[0], cK=d_out[1], S=S, d_jac=d_jac, US=self.sys.U @ S if m else None,
             vK=self.K0v + self.VK @ alpha, vM=self.M0v + self.VM @ beta,
             vD=self.VD @ g if self.nD else None,
             b=self.sys.b0 + (self.B_infl.T @ beta if self.nb else 0.0))
+        st.theta = theta
+        if self.terms is not None:
+            terms_state(st, self.terms, self.VT, self.T)
+        return st
 
     def _solve(self, st, w, jacobian):
         """q (n, N) and, with ``jacobian``, the adjoints Lam (n_ch, n, N) at frequencies w."""
@@ -257,6 +277,9 @@ class SparseFRF:
         zvals = (st.vK[:, None] * (1 + jw * st.cK) + st.vM[:, None] * (-(w ** 2) + jw * st.cM))
         if self.nD:
             zvals += jw * st.vD[:, None]
+        if self.nT:
+            zvals += st.tv[0][:, None] - st.tv[1][:, None] * w ** 2 + st.tv[2][:, None] * jw \
+                + 1j * st.tv[3][:, None]
         X = self._factor_solve(zvals, w, st.US, rhs)
         return X[0], X[1:]
 
@@ -301,6 +324,9 @@ class SparseFRF:
         AK = self.bil_K.products(q) * (-(1 + jw * st.cK)) if self.z_a.size else None
         AM = self.bil_M.products(q) * (w ** 2 - jw * st.cM) if self.z_b.size else None
         dD = self._damping_terms(st, q, Lam) * (-jw) if self.z_d.size else None
+        AT = None  # the families' terms: -f_t(w) P_t q on their stacked rows
+        if self.T_seg is not None:
+            AT = self.bil_T.products(q) * (-self.terms.factors(w)[self.T_seg])
         at_a, at_b, at_d = self.at
         for i, c in enumerate(ch):
             out, Lg = D[:, i], Lam[c] * G[i]
@@ -310,31 +336,43 @@ class SparseFRF:
                 out[at_b] += self.bil_M.real_form(AM, Lg) + self.B_z @ Lg.real
             if dD is not None:
                 out[at_d] += self.Td_free @ (dD[:, c] * G[i]).real
+            if AT is not None:
+                out += st.dcz.T @ (self.bil_T.real_form(AT, Lg) + self.terms.b @ Lg.real)
 
     def _channels(self, st, w, jacobian):
-        """(H (n_ch, N), fac (n_ch, N), q, Lam): H = fac E^T q + absolute (Lam None
-        without ``jacobian``)."""
+        """(H (n_ch, N), fac (n_ch, N), q, Lam, dth): H = fac E^T q + absolute, then the output
+        families (F, dth: :mod:`nlp.frf.backends.outputs`; fac includes F); Lam None
+        without ``jacobian``."""
         q, Lam = self._solve(st, w, jacobian)
         fac = (1j * w[None, :]) ** self.power[:, None]
         H = fac * (self.sys.E.T @ q) + self.absolute[:, None]
-        return H, fac, q, Lam
+        dth = {}
+        if self.terms is not None and self.terms.outputs is not None:
+            H, F, dth = self.terms.outputs(st.theta, w, H)
+            fac = fac * F
+        return H, fac, q, Lam, dth
 
     def frf(self, z, w, jacobian=False):
         """Channel FRFs (n_ch, N) at circular frequencies w; with ``jacobian`` also dH/dz."""
         st, w = self._state(z), np.asarray(w, float)
-        H, fac, q, Lam = self._channels(st, w, jacobian)
-        return (H, self._dHq(st, w, q, Lam) * fac[None]) if jacobian else H
+        H, fac, q, Lam, dth = self._channels(st, w, jacobian)
+        if not jacobian:
+            return H
+        dH = self._dHq(st, w, q, Lam) * fac[None]
+        for c, d in dth.items():
+            dH[:, c, :] += self.T.T @ d
+        return H, dH
 
-    def _rows(self, H, fac, Y, s, wt):
-        """Residual rows R (n_res, N) of Eqn 25a and G with dR/dz = Re(G d(E^T q)/dz)."""
+    def _rows(self, H, Y, s, wt):
+        """Residual rows R (n_res, N) of Eqn 25a and Gh with dR/dz = Re(Gh dH/dz)."""
         if self.residual == "log_magnitude":
-            return wt * (np.log(np.abs(H)) - np.log(np.abs(Y))), wt * fac / H
+            return wt * (np.log(np.abs(H)) - np.log(np.abs(Y))), wt / H
         if self.residual in ("magnitude", "relative_magnitude"):  # they differ in s only
             aH = np.abs(H)
-            return wt * (aH - np.abs(Y)) / s, wt * fac * np.conj(H) / (aH * s)
+            return wt * (aH - np.abs(Y)) / s, wt * np.conj(H) / (aH * s)
         E = (H - Y) / s
         R = np.stack([wt * E.real, wt * E.imag], axis=1).reshape(-1, E.shape[1])
-        G = np.stack([wt * fac / s, -1j * wt * fac / s], axis=1).reshape(-1, E.shape[1])
+        G = np.stack([wt / s, -1j * wt / s], axis=1).reshape(-1, E.shape[1])
         return R, G  # Im(x) = Re(-j x)
 
     def _chunk_rows(self, z, data, jacobian, Jt=None):
@@ -348,14 +386,18 @@ class SparseFRF:
         ch = np.arange(n_res) // (n_res // n_ch)
         st = self._state(z)
         for sl in self._chunks(N, n_res):
-            H, fac, q, Lam = self._channels(st, w[sl], jacobian)
-            R, G = self._rows(H, fac, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
+            H, fac, q, Lam, dth = self._channels(st, w[sl], jacobian)
+            R, Gh = self._rows(H, yr[:, sl] + 1j * yi[:, sl], s[:, sl], wt[:, sl])
             D = None
             if jacobian:
-                G = np.ascontiguousarray(G)  # the data arrive column-major: G[i] must be contiguous
+                # G = Gh dH/d(E^T q); the data arrive column-major: G[i] must be contiguous
+                G = np.ascontiguousarray(Gh * fac[ch])
                 D = (np.zeros((nz, n_res, sl.stop - sl.start)) if Jt is None
                      else Jt[:, sl].transpose(0, 2, 1))
                 self._jacobian_into(D, st, w[sl], q, Lam, G, ch)
+                for i, c in enumerate(ch):    # the output families' own parameters
+                    if c in dth:
+                        D[:, i] += self.T.T @ (dth[c] * Gh[i]).real
             yield sl, R, D
 
     def residuals(self, z, data, jacobian=True):

@@ -99,6 +99,27 @@ class LinearSystem:
         return LinearSystem(M0=_csc(M), K0=_csc(K), M_infl=self.M_infl, K_infl=self.K_infl,
                             U=self.U, dashpots=self.dashpots, b0=b0, b_infl=self.b_infl, E=self.E)
 
+    def padded(self, extra):
+        """The same system on ``extra`` more DOFs, appended with no mass, stiffness, load or
+        sensor: added physics (:mod:`nlp.frf.backends.terms`) gives them their matrices."""
+        if not extra:
+            return self
+        size = self.n + extra
+
+        def mat(A):
+            A = sp.coo_matrix(A)
+            return sp.csc_matrix((A.data, (A.row, A.col)), shape=(size, size))
+
+        def rows(x):
+            x = np.asarray(x)
+            return np.concatenate([x, np.zeros((extra,) + x.shape[1:])])
+
+        return LinearSystem(M0=mat(self.M0), K0=mat(self.K0), M_infl=tuple(mat(A) for A in self.M_infl),
+                            K_infl=tuple(mat(A) for A in self.K_infl),
+                            U=None if self.U is None else rows(self.U),
+                            dashpots=tuple(mat(D) for D in self.dashpots), b0=rows(self.b0),
+                            b_infl=tuple(rows(b) for b in self.b_infl), E=rows(self.E))
+
     def project(self, Psi):
         """The same system on q = Psi eta (Galerkin: every matrix A -> Psi^T A Psi)."""
         Pt = Psi.T

@@ -193,10 +193,11 @@ def _assemble(ops, script, stiffness_groups, mass_groups, case_path, log):
             raise InputError(case_path, f"model.{kind}_groups.{name}", "a group whose removal "
                              "keeps the model's DOF numbering (OpenSees renumbered the DOFs)")
         infl[(kind, name)] = A
+    coords = tuple((nd, tuple(float(x) for x in ops.nodeCoord(nd))) for nd in all_nodes)
     ops.wipe()
     if dofs_m != dofs or any(d is None for d in dofs):
         raise InputError(script, "<script>", "a model whose DOFs OpenSees numbers consistently")
-    return {"M0": M0, "K0": K0, "dofs": dofs, "ndm": ndm, "ndf": ndf,
+    return {"M0": M0, "K0": K0, "dofs": dofs, "ndm": ndm, "ndf": ndf, "coords": coords,
             "K_infl": [infl[("stiffness", n)] for n in (stiffness_groups or {})],
             "M_infl": [infl[("mass", n)] for n in (mass_groups or {})]}
 
@@ -216,4 +217,5 @@ def load_opensees(cfg, case_path):
         M_infl=tuple(csc(A) for A in a["M_infl"]), K_infl=tuple(csc(A) for A in a["K_infl"]),
         beta_names=names_m, alpha_names=names_k,
         beta_nominal=np.ones(len(names_m)), alpha_nominal=np.ones(len(names_k)),
-        dof_names=tuple(f"{nd}.{d}" for nd, d in a["dofs"]), dofs=a["dofs"], ndm=a["ndm"])
+        dof_names=tuple(f"{nd}.{d}" for nd, d in a["dofs"]), dofs=a["dofs"], ndm=a["ndm"],
+        node_coords=a["coords"])

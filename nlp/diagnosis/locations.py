@@ -1,0 +1,165 @@
+"""Where added physics can sit, in the model's own terms.
+
+A shear frame's locations are its floors (rows 1..n) and stories. An imported FE model
+(:mod:`nlp.io.importers`) has nodes: its "floors" are the mass-carrying node groups, the
+nodes at one elevation whose translation along the excitation direction carries mass
+(a frame's levels), and its "stories" its stiffness groups. A floor is a weight vector
+a_f (:func:`nlp.frf.backends.terms.floor_vector`): a_f^T u is the mean displacement of its
+nodes along the direction, so an added mass dm is spread over them, an appendage hangs
+from their mean, and a spring or dashpot joins two floors' means.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "floor_count", "case_floors", "story_count",
+           "floor_name", "fe_references", "located"]
+
+ELEVATION_TOL = 1e-6   # relative: nodes within this of one elevation form one level
+
+
+def is_fe(model):
+    """Whether ``model`` is an imported FE model (rows are node DOFs), not a shear frame."""
+    return bool(getattr(model, "dofs", ()))
+
+
+@dataclass(frozen=True)
+class Floor:
+    """One location: its name, node tags and rows (empty for a shear frame's floor)."""
+
+    name: str
+    nodes: tuple
+    rows: tuple
+
+
+def _direction(model, ground_r):
+    """The DOF number (1-based, OpenSees) the excitation moves: the ground's, else ux."""
+    if ground_r is not None:
+        hit = [d for (_, d), r in zip(model.dofs, ground_r) if r == 1]
+        if hit:
+            return hit[0]
+    return 1
+
+
+def floors(model, ground_r=None, channel_rows=()):
+    """The floors of ``model``: a shear frame's rows, or the node levels of an FE model. A
+    model without node coordinates (a matrix export) has no levels to find: its locations
+    are then the channels' DOFs that carry mass (``channel_rows``), each its own."""
+    if not is_fe(model):
+        return [Floor(f"floor {i + 1}", (), (i,)) for i in range(model.n)]
+    M = sp.csr_matrix(model.M0)
+    diag = M.diagonal()
+    coords = dict(getattr(model, "node_coords", ()) or ())
+    if not coords:
+        seen = dict.fromkeys(i for i in channel_rows if 0 <= i < model.n and diag[i] > 0)
+        return [Floor(f"node {model.dofs[i][0]} (DOF {model.dofs[i][1]})", (model.dofs[i][0],),
+                      (i,)) for i in seen]
+    d = _direction(model, ground_r)
+    rows = {nd: i for i, (nd, dof) in enumerate(model.dofs) if dof == d and diag[i] > 0}
+    ndm = model.ndm or (len(next(iter(coords.values()))) if coords else 1)
+    levels = {}
+    for nd in rows:
+        z = coords[nd][ndm - 1] if nd in coords else float(nd)
+        levels.setdefault(z, []).append(nd)
+    heights = sorted(levels)
+    span = max(abs(heights[-1] - heights[0]), 1.0) if heights else 1.0
+    groups, last = [], None
+    for z in heights:      # merge elevations within the tolerance
+        if last is not None and z - last <= ELEVATION_TOL * span:
+            groups[-1][1].extend(levels[z])
+        else:
+            groups.append((z, list(levels[z])))
+        last = z
+    out = []
+    for z, nodes in groups:
+        nodes = tuple(sorted(nodes))
+        where = f"at {z:g} m" if coords else f"node {nodes[0]}"
+        out.append(Floor(f"level {where} (nodes {_tags(nodes)})", nodes,
+                         tuple(rows[nd] for nd in nodes)))
+    return out
+
+
+def _tags(nodes):
+    return ", ".join(str(t) for t in nodes) if len(nodes) <= 4 else \
+        f"{nodes[0]}, {nodes[1]}, ..., {nodes[-1]} ({len(nodes)})"
+
+
+def floor_vectors(model, fl):
+    """a_f per floor (n,): weight 1/|G| on each of the floor's rows."""
+    out = []
+    for f in fl:
+        a = np.zeros(model.n)
+        a[list(f.rows)] = 1.0 / len(f.rows)
+        out.append(a)
+    return out
+
+
+def floor_count(case):
+    """Floors the families are located at (1..count)."""
+    return len(case_floors(case))
+
+
+def case_floors(case):
+    """The case's floors (:func:`floors`) along its excitation."""
+    return floors(case.model, *_along(case))
+
+
+def _along(case):
+    """(ground_r, channel rows) of a case, for :func:`floors`."""
+    tg = getattr(case, "target", None)
+    return (getattr(tg, "ground_r", None),
+            tuple(ch.dof for ch in getattr(tg, "channels", ())))
+
+
+def story_count(model):
+    """Stories of a shear frame (its rows), stiffness groups of an FE model."""
+    return len(model.K_infl) if is_fe(model) else model.n
+
+
+def floor_name(model, ground_r, floor, channel_rows=()):
+    """The name of floor ``floor`` (1-based; 0 is the ground)."""
+    if floor == 0:
+        return "the supports" if is_fe(model) else "the ground"
+    return floors(model, ground_r, channel_rows)[floor - 1].name
+
+
+def fe_references(model, damping, ground_r, channel_rows=()):
+    """Reference magnitudes of an FE model's families: a floor's mass m_ref [kg] (the
+    mass on its rows), a story's stiffness k_ref [N/m] (half the force per unit uniform
+    motion of one floor, others held: two stories resist it) and damping c_ref [N s/m]
+    (the same motion's damping force), each a mean over floors; and the weight vectors."""
+    fl = floors(model, ground_r, channel_rows)
+    if not fl:
+        raise ValueError("an FE model without node coordinates needs channels at DOFs that "
+                         "carry mass to locate added physics at")
+    e = [np.bincount(list(f.rows), minlength=model.n).astype(float) for f in fl]
+    M, K = sp.csr_matrix(model.M0), sp.csr_matrix(model.K0)
+    try:
+        C = sp.csr_matrix(damping.matrix(damping.initial(), M, K))
+    except (AttributeError, TypeError, ValueError):
+        C = None
+    return {"m_ref": float(np.mean([r @ (M @ r) for r in e])),
+            "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
+            "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,
+            "floors": floor_vectors(model, fl)}
+
+
+def located(case, e):
+    """e's location for the findings: its own, with ``where`` (the place in words, node tags
+    and group names) on an FE model; a shear frame's keeps its floor and story numbers."""
+    loc = dict(e.location)
+    model = case.model
+    if not is_fe(model):
+        return loc
+    r, rows = _along(case)
+    if "floor" in loc:
+        loc["where"] = "at " + floor_name(model, r, loc["floor"], rows)
+    elif "between" in loc and e.family == "hysteretic_damping":
+        loc["where"] = f"in stiffness group {model.alpha_names[loc['between'][1] - 1]}"
+    elif "between" in loc:
+        a, b = loc["between"]
+        loc["where"] = (f"between {floor_name(model, r, a, rows)} and "
+                        f"{floor_name(model, r, b, rows)}")
+    return loc

@@ -1,0 +1,143 @@
+"""Locations of added physics on an FE model: its levels (mass-carrying nodes at one
+elevation), named by node tags, and the families at them on the sparse backend against a
+numpy solve of the matrices built by hand from the node rows (and the dense backend)."""
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+
+from nlp.diagnosis.families import (AddedMass, LocalDamper, NonadjacentCoupling,
+                                    SecondaryOscillator, extend_parameters)
+from nlp.diagnosis.locations import fe_references, floor_name, floors
+from nlp.model.damping import RayleighDamping
+from nlp.model.nominal import StructuralModel
+from nlp.model.parameters import Parameter, ParameterSet
+from nlp.solve.problem import Channel, SolverConfig, Target, UpdatingProblem
+
+LEVELS, COLS = 3, 2
+NODE_MASS = [[500.0, 700.0], [400.0, 600.0], [300.0, 350.0]]
+
+
+def _tag(lev, col):
+    return 10 * (lev + 1) + col
+
+
+def _frame():
+    """Two columns of nodes, 3 levels, DOFs ux (1) and uy (2) per node, listed level by level
+    with uy first (so the ux rows are not every other row from 0); springs in ux between
+    levels and to the ground, beams joining a level's two nodes, stiff uy springs."""
+    dofs = [(_tag(lv, c), d) for lv in range(LEVELS) for c in range(COLS) for d in (2, 1)]
+    n = len(dofs)
+    row = {nd: i for i, nd in enumerate(dofs)}
+    K = np.zeros((n, n))
+
+    def spring(a, b, k):
+        for i, si in ((a, 1), (b, -1)):
+            for j, sj in ((a, 1), (b, -1)):
+                if i is not None and j is not None:
+                    K[i, j] += si * sj * k
+
+    for lv in range(LEVELS):
+        for c in range(COLS):
+            below = row[(_tag(lv - 1, c), 1)] if lv else None
+            spring(row[(_tag(lv, c), 1)], below, 2.0e5 * (1 + 0.1 * c))
+            spring(row[(_tag(lv, c), 2)], row[(_tag(lv - 1, c), 2)] if lv else None, 5.0e6)
+        spring(row[(_tag(lv, 0), 1)], row[(_tag(lv, 1), 1)], 8.0e5)
+    masses = np.array([NODE_MASS[nd // 10 - 1][nd % 10] for nd, _ in dofs])
+    coords = tuple((_tag(lv, c), (6.0 * c, 3.0 * (lv + 1))) for lv in range(LEVELS)
+                   for c in range(COLS))
+    model = StructuralModel(M0=sp.csc_matrix(np.diag(masses)), K0=sp.csc_matrix(K),
+                            M_infl=(), K_infl=(sp.csc_matrix(K),), beta_names=(),
+                            alpha_names=("k",), beta_nominal=np.ones(0), alpha_nominal=np.ones(1),
+                            dofs=tuple(dofs), ndm=2, node_coords=coords)
+    r = np.array([1.0 if d == 1 else 0.0 for _, d in dofs])
+    return model, row, r
+
+
+def test_levels_are_node_groups_at_one_elevation():
+    model, row, r = _frame()
+    fl = floors(model, r)
+    assert [f.nodes for f in fl] == [(10, 11), (20, 21), (30, 31)]
+    assert [f.rows for f in fl] == [(row[(10, 1)], row[(11, 1)]), (row[(20, 1)], row[(21, 1)]),
+                                    (row[(30, 1)], row[(31, 1)])]
+    assert floor_name(model, r, 2) == "level at 6 m (nodes 20, 21)"
+    refs = fe_references(model, RayleighDamping(0.1, 0.001), r)
+    assert np.isclose(refs["m_ref"], np.mean([sum(m) for m in NODE_MASS]))
+    np.testing.assert_allclose(refs["floors"][1][[row[(20, 1)], row[(21, 1)]]], [0.5, 0.5])
+
+
+def test_families_at_levels_on_the_sparse_backend():
+    """dm spread over a level's nodes, a spring between two levels' mean ux, an appendage on a
+    level's mean ux: the FRF against (K - w^2 M + j w C) q = -M r by numpy."""
+    model, row, r = _frame()
+    damping = RayleighDamping(0.2, 0.0005)
+    refs = fe_references(model, damping, r)
+    fams = [AddedMass(2), NonadjacentCoupling(1, 3), SecondaryOscillator(3, 4.0), LocalDamper(1, 0)]
+    dm, kc, (mu, fs, zeta), cd = 120.0, 3.0e4, (0.03, 3.5, 0.05), 800.0
+    ps = (Parameter("k", "stiffness", 0.0, -0.5, 1.0),
+          Parameter("a0", "damping", 1.0, 0.0, 30.0), Parameter("a1", "damping", 1.0, 0.0, 30.0))
+    params = extend_parameters(ParameterSet(ps, 1, 0), fams, refs,
+                               [[dm], [kc], [mu, fs, zeta], [cd]])
+    w = np.linspace(5.0, 80.0, 25)
+    chans = tuple(Channel(f"a{nd}", row[(nd, 1)], "absolute_accelerance") for nd in (10, 21, 31))
+    tg = Target(w, np.ones((3, w.size), complex), np.ones((3, w.size)), chans, "ground", None,
+                ground_r=r)
+    pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=fams, refs=refs, frf_backend="sparse")
+    H = pr.channel_frfs(pr.z0, w)
+
+    n = model.n
+    M = np.pad(model.M0.toarray(), (0, 1))
+    K = np.pad(model.K0.toarray(), (0, 1))
+    C = 0.2 * M + 0.0005 * K
+    C[n, n] = 0.0
+    for nd in (20, 21):
+        M[row[(nd, 1)], row[(nd, 1)]] += dm / 2
+    v = np.zeros(n + 1)
+    v[[row[(10, 1)], row[(11, 1)]]] = 0.5
+    C += cd * np.outer(v, v)
+    v[[row[(30, 1)], row[(31, 1)]]] = -0.5
+    K += kc * np.outer(v, v)
+    u = np.zeros(n + 1)
+    u[[row[(30, 1)], row[(31, 1)]]] = 0.5
+    u[n] = -1.0
+    ms = mu * refs["m_ref"]
+    ws = 2 * math.pi * fs
+    M[n, n] = ms
+    K += ms * ws ** 2 * np.outer(u, u)
+    C += 2 * zeta * ms * ws * np.outer(u, u)
+    b = -M @ np.append(r, 1.0)
+    q = np.array([np.linalg.solve(K - x ** 2 * M + 1j * x * C, b) for x in w]).T
+    ref = -(w ** 2) * q[[row[(10, 1)], row[(21, 1)], row[(31, 1)]]] + 1
+    np.testing.assert_allclose(H, ref, rtol=1e-9)
+    dense = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                            enrichments=fams, refs=refs, frf_backend="dense")
+    np.testing.assert_allclose(dense.channel_frfs(dense.z0, w), ref, rtol=1e-9)
+
+
+def test_findings_name_fe_locations_in_model_terms():
+    from types import SimpleNamespace
+    from nlp.diagnosis.families import HystereticDamping
+    from nlp.diagnosis.locations import located
+    from nlp.diagnosis.units import place
+    from nlp.model.nominal import shear_frame
+    model, row, r = _frame()
+    case = SimpleNamespace(model=model, target=SimpleNamespace(ground_r=r))
+    assert place(located(case, AddedMass(2))) == "at level at 6 m (nodes 20, 21)"
+    assert place(located(case, LocalDamper(1, 0))) == \
+        "between the supports and level at 3 m (nodes 10, 11)"
+    assert place(located(case, HystereticDamping(1))) == "in stiffness group k"
+    shear = SimpleNamespace(model=shear_frame([1.0, 1.0], [1.0, 1.0]), target=SimpleNamespace())
+    assert located(shear, AddedMass(2)) == {"floor": 2}
+    assert place(located(shear, AddedMass(2))) == "at floor 2"
+
+
+def test_without_coordinates_the_channels_are_the_locations():
+    """A matrix export has no node coordinates: each channel's DOF with mass is a location."""
+    from dataclasses import replace
+    model, row, r = _frame()
+    bare = replace(model, node_coords=())
+    fl = floors(bare, r, (row[(21, 1)], row[(10, 1)], row[(21, 1)]))
+    assert [f.rows for f in fl] == [(row[(21, 1)],), (row[(10, 1)],)]
+    assert fl[0].name == "node 21 (DOF 1)"
