@@ -17,6 +17,7 @@ from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, n
 from nlp.diagnosis.loss import band_points, loss_decision, loss_row
 from nlp.diagnosis.phase import delay_check
 from nlp.diagnosis.refit import REFIT_ITER
+from nlp.diagnosis.locations import story_count
 from nlp.frf.scatter import second_difference_factor
 
 MIN_LOSS_POINTS = 20   # band points below which the loss check is not made
@@ -74,7 +75,8 @@ def loss_check(case, state, delays, log):
 
     # one problem holds every location's loss (eta K, eta K_1 ... eta K_n, last); the
     # nested fits hold the other locations at zero by their bounds: one build, n + 2 solves
-    losses = [HystereticDamping()] + [HystereticDamping(s) for s in range(1, case.model.n + 1)]
+    losses = [HystereticDamping()] + [HystereticDamping(s)
+                                      for s in range(1, story_count(case.model) + 1)]
     m = len(losses)
     pr = diagnosis_problem(case, target, current + losses, optimize=False, max_iter=REFIT_ITER,
                        residual="complex")

@@ -25,7 +25,6 @@ sensitivities) per point, handed to the same NLP as CasADi callbacks
 (:mod:`nlp.solve.callbacks`). When a solve stops: :mod:`nlp.solve.stopping`.
 """
 
-
 from dataclasses import dataclass, field
 import time
 
@@ -61,7 +60,6 @@ _DEFAULT_OPTIONS = {
                   "min_step_size": 1e-14,
                   "print_time": False, "error_on_fail": False},
 }
-
 
 
 @dataclass(frozen=True)
@@ -345,7 +343,6 @@ class UpdatingProblem:
     # 284 s against 25 s at 64 storeys); IPOPT's prefits from there stop at their cap
     lm_prefit = False  # True: prefits by LM, handed over near their minimum
     lm_local = False   # True: every local solve by LM
-
     # Newton polish where IPOPT ends unconverged; off for refits capped on purpose
     polish_unconverged = True
     early_polish = False   # True (diagnosis fits, f half a chi-square): stop at POLISH_AT to polish
@@ -376,8 +373,7 @@ class UpdatingProblem:
         z_start = z0c if pre is None else pre.z
         z, f, success, status, iters = self._local(z_start, lo, hi, screen, early=True)
         if self._stop is not None and self._stop.early:
-            # stopped at POLISH_AT: Newton steps only from a convex point (an earlier,
-            # unchecked polish once found a worse minimum: docs/method/updating.md)
+            # Newton steps only from a convex point (docs/method/updating.md)
             z, f, success, status = self._polish(z, f, lo, hi, status, convex_start=True)
             if not success:
                 z, f, success, status, more = self._local(z, lo, hi, screen)
@@ -405,8 +401,7 @@ class UpdatingProblem:
         return self.backend != "dense" and self.solver_config.name == "ipopt" and self.lm_local
 
     def _local(self, z_start, lo, hi, screen, early=False):
-        """(z, f, success, status, iterations) of one local solve from z_start; early: stop
-        once at POLISH_AT iterations (polished solves of up to MAX_PARAMETERS)."""
+        """(z, f, success, status, iterations) from z_start; early: may stop at POLISH_AT."""
         if self.uses_lm:
             res = self.solve_lm(z_start, (lo, hi))
             return res.z, res.f, res.success, res.status, res.iterations
