@@ -244,15 +244,15 @@ class UpdatingProblem:
         if self.backend == "dense":
             return "dense FRF backend, " + ("compiled C" if self.compiled else "CasADi virtual machine")
         ev = self.evaluator
-        how = ("batched dense LU" if ev.batched else
-               f"banded LU, half-bandwidth {ev.bandwidth}" if ev.banded else "SuperLU")
-        how += f", {ev.n} + {ev.m} unknowns"
+        how = ("dense: modal sums, else one LU per frequency" if ev.batched else f"banded LU, "
+               f"half-bandwidth {ev.bandwidth}" if ev.banded else "SuperLU") + f", {ev.n} + {ev.m} unknowns"
         text = f"{self.backend} FRF backend ({how}, adjoint sensitivities)"
         info = getattr(self, "reduced_info", None)
         if info:
-            text += (f"; {info['vectors']} basis vectors, RMS ln|H| error {info['rms_log_error']:.2g}"
-                     f" vs noise {info['noise']:.2g} at {info['points_checked']} of the case's"
-                     f" frequencies")
+            text += f"; {info['vectors']} basis vectors, " + (
+                "not checked against the exact FRF here" if info["rms_log_error"] is None else
+                f"RMS ln|H| error {info['rms_log_error']:.2g} vs noise {info['noise']:.2g} at "
+                f"{info['points_checked']} of the case's frequencies")
         return text
 
     # ------------------------------------------------------------- numerics

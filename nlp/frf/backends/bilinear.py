@@ -11,6 +11,8 @@ import scipy.sparse as sp
 
 __all__ = ["triplets", "aggregate", "Pattern", "Bilinear", "real_times_complex"]
 
+DENSE_SHARE = 0.25  # stacked rows this full are multiplied as a dense array (one BLAS call)
+
 
 def triplets(mats):
     """(rows, cols, values, matrix index) of all nonzeros of a list of sparse matrices."""
@@ -91,6 +93,8 @@ class Bilinear:
         self.rows = (key % n).astype(int)
         seg = (key // n).astype(int)
         self.A = sp.csr_matrix((v, (pos, c)), shape=(key.size, n))
+        if self.A.nnz >= DENSE_SHARE * key.size * n:  # projected (reduced) matrices: BLAS
+            self.A = self.A.toarray()
         self.S = sp.csr_matrix((np.ones(key.size), (seg, np.arange(key.size))),
                                shape=(self.k, key.size))
 

@@ -1,7 +1,8 @@
 """Exact FRF and its analytic sensitivities with one sparse factorisation per frequency.
 
 For each frequency w_k the system of :mod:`nlp.frf.backends.system` is
-factorised once (small systems: one batched dense LU over all frequencies;
+factorised once (small systems, e.g. a projected reduced one: one eigendecomposition per
+evaluation, :mod:`nlp.frf.backends.pencil`, else one batched dense LU over all frequencies;
 else, when the band is narrow after reverse Cuthill-McKee ordering, one batched
 banded L D L^T over a chunk of frequencies (:mod:`nlp.frf.backends.banded`:
 no pivoting, growth-checked, LAPACK with pivoting where the check fails),
@@ -32,6 +33,7 @@ import casadi as ca
 
 from nlp.frf.backends.allocator import retain_freed_memory
 from nlp.frf.backends.banded import solve_banded_batch, solve_pivoted
+from nlp.frf.backends.pencil import decompose
 from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
 from nlp.frf.backends.terms import terms_state
 from nlp.frf.forms import POWER
@@ -238,6 +240,26 @@ class SparseFRF:
             X[:, :, k] = spla.splu(A, permc_spec="MMD_AT_PLUS_A").solve(rhs_b)[:n].T
         return X
 
+    def _pencil_solve(self, st, w, rhs):
+        """Solves by one eigendecomposition per evaluation (:mod:`nlp.frf.backends.pencil`),
+        or None where that route is not accurate (then one LU per frequency)."""
+        if "pencil" not in vars(st):
+            n, (r, c) = self.n, (self.pat.rows, self.pat.cols)
+            vals = [st.vK, st.cK * st.vK + st.cM * st.vM, st.vM]
+            if self.nD:
+                vals[1] = vals[1] + st.vD
+            if self.nT:
+                vals = [vals[0] + st.tv[0] + 1j * st.tv[3], vals[1] + st.tv[2], vals[2] + st.tv[1]]
+            A = []
+            for v in vals:
+                D = np.zeros((n, n), complex if np.iscomplexobj(v) else float)
+                D[r, c] = v
+                A.append(D)
+            if self.m:  # the bordered rank-m damping, folded back into C: U S U^T
+                A[1] = A[1] + st.US @ self.sys.U.T
+            st.pencil = decompose(*A, w, rhs)
+        return None if st.pencil is None else st.pencil.solve(w, rhs)
+
     def _chunks(self, N, n_res):
         """Slices of the frequency axis whose working arrays fit in ``CHUNK_BYTES``."""
         n, nz, size = self.n, self.params.n_z, self.n + self.m
@@ -273,6 +295,10 @@ class SparseFRF:
         if self.banded:
             X = self._banded_solve(st, w, rhs)
             return X[0], X[1:]
+        if self.batched:
+            X = self._pencil_solve(st, w, rhs)
+            if X is not None:
+                return X[0], X[1:]
         jw = 1j * w
         zvals = (st.vK[:, None] * (1 + jw * st.cK) + st.vM[:, None] * (-(w ** 2) + jw * st.cM))
         if self.nD:

@@ -172,25 +172,33 @@ def test_sparse_sensitivities_equal_finite_differences(n):
 
 
 def test_batched_banded_and_superlu_paths_agree(monkeypatch):
-    """Batched dense LU (small systems), banded LU (narrow band after RCM) and SuperLU give
-    the same r and J, with Rayleigh (no border) and modal-basis damping (bordered system)."""
+    """Batched solves (small systems: one eigendecomposition, or one dense LU per frequency),
+    banded LU (narrow band after RCM) and SuperLU give the same r and J, with Rayleigh (no
+    border) and modal-basis damping (bordered system)."""
     from nlp.frf.backends import sparse as sparse_backend
+    from nlp.frf.backends.pencil import decompose
     rng = np.random.default_rng(5)
     model = random_model(20, rng)
     for damping in (RayleighDamping(0.2, 1e-3), nonproportional_damping(model, rng)):
         params = param_set(model, damping, fixed_masses=range(5, 20))
         tg = target(model, band(model), [3, 10, 19])
         problems = [UpdatingProblem(model, damping, params, tg, frf_backend="sparse")]
+        routes = []   # the batched path solves by one eigendecomposition (pencil.py) ...
+        monkeypatch.setattr(sparse_backend, "decompose",
+                            lambda *a: routes.append(decompose(*a)) or routes[-1])
+        z = params.z0 + rng.uniform(-0.1, 0.1, params.n_z)
+        r0, J0 = problems[0].residuals(z)
+        assert routes and routes[-1] is not None
+        monkeypatch.setattr(sparse_backend, "decompose", lambda *a: None)   # ... or by LU
+        problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.setattr(sparse_backend, "BATCH_MAX", 0)
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.setattr(sparse_backend, "BAND_MAX", -1)
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.undo()
         ev = [p.evaluator for p in problems]
-        assert ev[0].batched and not ev[1].batched and not ev[2].batched and not ev[2].banded
-        assert ev[1].banded == (damping.U is None)
-        z = params.z0 + rng.uniform(-0.1, 0.1, params.n_z)
-        r0, J0 = problems[0].residuals(z)
+        assert ev[1].batched and not ev[2].batched and not ev[3].batched and not ev[3].banded
+        assert ev[2].banded == (damping.U is None)
         for p in problems[1:]:
             r, J = p.residuals(z)
             assert np.max(np.abs(r - r0)) < 1e-10 and np.max(np.abs(J - J0)) < 1e-9 * np.abs(J0).max()
