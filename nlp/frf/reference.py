@@ -124,18 +124,23 @@ def frf_state_space(M, C, K, omega, excitation="ground", force_dof=None, output=
 
 
 def frf_dynamic_stiffness(M, C, K, omega, excitation="ground", force_dof=None,
-                          output="receptance", r=None):
-    """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b (r: ground influence)."""
+                          output="receptance", r=None, dofs=None):
+    """FRFs from the dynamic stiffness: (K - w^2 M + jwC) q = b (r: ground influence).
+
+    ``dofs``: only these rows, in this order (default: every DOF)."""
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     b = load_vector(M, excitation, force_dof, r)
     if M.shape[0] > LARGE_N:
         ab = _rayleigh_coefficients(M, C, K)
-        Hq = _solve_sparse(M, C, K, omega, b) if ab is None else \
-            _solve_proportional(M, K, ab, omega, b)
+        if ab is None:
+            Hq = _solve_sparse(M, C, K, omega, b)
+            Hq = Hq if dofs is None else Hq[np.asarray(dofs)]
+        else:
+            Hq = _solve_proportional(M, K, ab, omega, b, dofs)
         return _apply_output(Hq, omega, output)
     Z = K[None] - omega[:, None, None] ** 2 * M[None] + 1j * omega[:, None, None] * C[None]
     Hq = np.linalg.solve(Z, np.broadcast_to(b, (omega.size, b.size))[..., None])[..., 0].T
-    return _apply_output(Hq, omega, output)
+    return _apply_output(Hq if dofs is None else Hq[np.asarray(dofs)], omega, output)
 
 
 # Above this many DOFs the stacked dense solve (N n^2 complex numbers) gives way to one
@@ -176,21 +181,25 @@ def _rayleigh_coefficients(M, C, K, rtol=1e-12):
 _MODES_CACHE = {}
 
 
-def _solve_proportional(M, K, ab, omega, b):
+def _solve_proportional(M, K, ab, omega, b, dofs=None):
     """q(w) for C = a0 M + a1 K by the sum over ALL undamped modes (exact for this damping):
     q = Phi diag(1 / (lam_r - w^2 + jw (a0 + a1 lam_r))) Phi^T b. One dense eigh (divide and
     conquer, 3 s at 2,100 DOFs) replaces a sparse LU per frequency (0.1 s each); cached per
-    (M, K), since the result files evaluate the same model on several grids."""
+    (M, K) for the two models a run compares (initial and updated), since the result files
+    evaluate each on several grids. ``dofs``: only these rows of q."""
     Md, Kd = (A.toarray() if sp.issparse(A) else np.asarray(A, float) for A in (M, K))
     key = (hash(Md.tobytes()), hash(Kd.tobytes()))
     if key not in _MODES_CACHE:
-        _MODES_CACHE.clear()  # one model at a time: n^2 floats each
+        while len(_MODES_CACHE) >= 2:  # n^2 floats each
+            _MODES_CACHE.pop(next(iter(_MODES_CACHE)))
         _MODES_CACHE[key] = sla.eigh(Kd, Md, driver="gvd")
     lam, Phi = _MODES_CACHE[key]
     a0, a1 = ab
     g = Phi.T @ np.asarray(b, float)
     den = lam[:, None] - omega[None, :] ** 2 + 1j * omega[None, :] * (a0 + a1 * lam[:, None])
-    return Phi @ (g[:, None] / den)
+    X = g[:, None] / den
+    rows = Phi if dofs is None else Phi[np.asarray(dofs)]
+    return rows @ X.real + 1j * (rows @ X.imag)  # two real products, not one complex one
 
 
 def _lowest_complex_modes(M, C, K, k):
@@ -243,6 +252,8 @@ def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, 
     """
     out = {}
     rows = []
+    dofs = sorted({ch.dof for ch in channels if ch.dof != BASE_DOF})
+    at = {d: i for i, d in enumerate(dofs)}
     for ch in channels:
         if ch.dof == BASE_DOF:
             rows.append(np.full(np.size(omega), 1.0 if ch.output == "absolute_accelerance" else 0.0,
@@ -251,6 +262,7 @@ def channel_frfs(M, C, K, omega, channels, excitation="ground", force_dof=None, 
         p = getattr(ch, "force_dof", None)
         p = force_dof if p is None else p
         if (ch.output, p) not in out:
-            out[ch.output, p] = frf_dynamic_stiffness(M, C, K, omega, excitation, p, ch.output, r)
-        rows.append(out[ch.output, p][ch.dof])
+            out[ch.output, p] = frf_dynamic_stiffness(M, C, K, omega, excitation, p, ch.output, r,
+                                                      dofs=dofs)
+        rows.append(out[ch.output, p][at[ch.dof]])
     return np.array(rows)

@@ -102,3 +102,7 @@ def test_large_model_routes_equal_a_dense_direct_solve(proportional, rng):
     b[n - 1] = 1
     ref = np.array([-(w ** 2) * np.linalg.solve(K - w ** 2 * M + 1j * w * C, b) for w in omega]).T
     assert np.max(np.abs(H - ref)) < 1e-8 * np.abs(ref).max()
+    rows = [n - 1, 7, 0]   # a subset of the DOFs, in the order asked
+    Hs = frf_dynamic_stiffness(M, C, K, omega, "force", n - 1, "accelerance", dofs=rows)
+    assert Hs.shape == (3, omega.size)
+    assert np.max(np.abs(Hs - ref[rows])) < 1e-8 * np.abs(ref).max()
