@@ -1,0 +1,50 @@
+"""Figures of a lab exam scored so far, pooled over its seeds (issue 48).
+
+    python scripts/exam_progress.py --order docs/benchmarks/exam_20261128T025926Z_order.txt \
+        --root /work/exam/exam_20261128T025926Z
+
+The exam's cases are scored in the random order drawn before the first was scored (one
+``seed case`` per line of --order); ROOT/seed_S/scores.jsonl hold the results
+(scripts/score_lab.py). Any prefix of the order is a uniform sample of the exam, so the
+figures are those of the longest scored prefix; cases scored beyond it are counted apart.
+"""
+
+import argparse
+import json
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from score_lab import summary  # noqa: E402  (the same figures as one seed's scoring)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--order", required=True)
+    ap.add_argument("--root", required=True)
+    a = ap.parse_args()
+    with open(a.order) as fh:
+        order = [ln.split() for ln in fh if ln.strip()]
+    scored = {}
+    for seed in {s for s, _ in order}:
+        log = os.path.join(a.root, f"seed_{seed}", "scores.jsonl")
+        if os.path.isfile(log):
+            with open(log) as fh:
+                for r in map(json.loads, filter(str.strip, fh)):
+                    scored[seed, r["case"][:2]] = r
+    prefix = []
+    for key in map(tuple, order):
+        if key not in scored:
+            break
+        prefix.append(scored[key])
+    beyond = len(scored) - len(prefix)
+    print(f"scored {len(scored)} of {len(order)} exam cases; the longest scored prefix of the "
+          f"drawn order holds {len(prefix)}" + (f" ({beyond} more scored beyond it, not counted)"
+                                                if beyond else ""))
+    if prefix:
+        summary(prefix)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
