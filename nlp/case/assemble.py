@@ -58,6 +58,9 @@ class Case:
     # model discrepancy a diagnosis adds to every fit (nlp.diagnosis.discrepancy): resonances
     # outside the model class, as modal terms; empty for updating
     discrepancy: tuple = ()
+    # decision vector z at which a diagnosis on the reduced backend computes its basis
+    # (nlp.diagnosis.reduction; None: the initial model)
+    basis_centre: np.ndarray = None
 
 
 def assemble(cfg, channels=None, data_file=None):

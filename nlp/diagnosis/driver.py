@@ -49,6 +49,7 @@ from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selectio
 from nlp.diagnosis.nuisance import hold_open_nuisance
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
 from nlp.diagnosis.reciprocity import reciprocal_pairs, refute_gains
+from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen_tests, setup_error_result
 from nlp.diagnosis.spread import chi2_spread
@@ -108,6 +109,8 @@ def first_look(cfg, case, opts, widen, screening, log):
     widened look (when it stands) or this look's checks and verdict."""
     points = points_stage(cfg, case, widen, (), log)
     base = baseline_stage(cfg, case, points, None, log)
+    if uses_reduced(case):
+        case, points, base = reduced_stage(cfg, case, points, base, log)
     case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
@@ -121,12 +124,13 @@ def first_look(cfg, case, opts, widen, screening, log):
     return conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log)
 
 
-def widened_look(cfg, opts, nonlin, hot, seed, log, discrepancy=()):
+def widened_look(cfg, opts, nonlin, hot, seed, log, first):
     """The look over windows WIDEN x wider, with windows at the hot frequencies [Hz]; the
     level comparison is the first look's (nonlin); seed: the first look's optima and
-    findings (a look after findings), or None (a look after none); discrepancy: the first
-    look's model discrepancy, kept (its windows too)."""
-    case = replace(assemble(cfg), discrepancy=tuple(discrepancy))
+    findings (a look after findings), or None (a look after none); first: the first look's
+    case, whose model discrepancy is kept (its windows too) and reduced basis reused."""
+    discrepancy = first.discrepancy
+    case = replace(assemble(cfg), discrepancy=tuple(discrepancy), basis_centre=first.basis_centre)
     hot = tuple(dict.fromkeys(tuple(hot) + tuple(m.f0 for m in discrepancy)))
     points = points_stage(cfg, case, WIDEN, hot, log)
     base = baseline_stage(cfg, case, points, seed, log)
@@ -143,7 +147,7 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
         log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
         hot = unexplained(case, points.base, base.res.z, points.fit)[1]
-        return widened_look(cfg, opts, nonlin, hot, None, log, case.discrepancy)
+        return widened_look(cfg, opts, nonlin, hot, None, log, case)
     state = sel.state
     if not leaves_shoulders(base, sel, state["problem"].params.n_z - points.base.params.n_z):
         return None
@@ -155,7 +159,7 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
     extra, hot = unexplained(case, state["problem"], state["z"], points.fit)
     seed = Seed(base.res.z, state["z"], [r["enrichment"] for r in sel.found])
     wide = widened_look(cfg, opts, nonlin, tuple(dict.fromkeys(tuple(hot) + tuple(extra))),
-                        seed, log, case.discrepancy)
+                        seed, log, case)
     if keeps_findings(wide.result, sel.found):
         return wide
     log("the wider look loses a finding of the first: the first look stands")
@@ -244,6 +248,20 @@ def baseline_stage(cfg, case, points, seed, log, starts=None):
         f"points), held-out {held:.2f} on {rh0.size} points")
     log("  " + describe_noise(case.noise)["statement"])
     return Baseline(res, converged, chi, nu, n_fit, held, cells, (sd, n_eff))
+
+
+def reduced_stage(cfg, case, points, base, log):
+    """(case, points, baseline) on a reduced basis re-centred on the baseline's optimum
+    (nlp.diagnosis.reduction): a basis at the nominal model would bias every fit."""
+    def refit(c, z):
+        pr = diagnosis_problem(c, points.target)
+        return pr, best_fit(pr, [z])
+
+    centre, z = step("reduced basis", fingerprint(points.fit, base.res.z),
+                     lambda: recentre_baseline(case, refit, base.res.z, log)[1:])
+    case = replace(case, basis_centre=centre)  # the last problem's basis is cached: no rebuild
+    points = replace(points, base=diagnosis_problem(case, points.target))
+    return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])
 
 
 def discrepancy_stage(cfg, case, points, base, widen, log):

@@ -14,6 +14,7 @@ from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
 from nlp.diagnosis.families import extend_parameters, references
 from nlp.diagnosis.locations import fe_references, is_fe
+from nlp.diagnosis.reduction import basis_of, uses_reduced
 from nlp.errors import SearchFailed
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
@@ -63,9 +64,12 @@ def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, o
     solver = SolverConfig(cfg.solver.name, options, compile, optimize)
     if residual is None:
         residual = "complex" if cfg.objective.residual == "complex" else "log_magnitude"
+    reduced = uses_reduced(case)  # a large FE model: every fit on one re-centred basis
     pr = UpdatingProblem(case.model, damping, params, target, residual=residual,
                          solver=solver, total_mass=cfg.parameters.total_mass,
-                         enrichments=enrichments, refs=refs)
+                         enrichments=enrichments, refs=refs,
+                         frf_backend="reduced" if reduced else "auto",
+                         basis=basis_of(case) if reduced else None)
     # a capped refit bounds its optimum and is continued when adopted (refit.continue_refit);
     # Newton steps from wherever each of its starts stopped cost more than the cap saves
     # (minutes per round on a refit of a few thousand residuals and some 30 parameters;

@@ -41,10 +41,11 @@ that nlp/quality.py found when the records were read are reported as warnings.
 """
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import signal
 
 from nlp.case.assemble import assemble, single_tests
 from nlp.case.selection import detection_form
+from nlp.model.damping import band_modes
 
 __all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swap_test"]
 
@@ -160,8 +161,7 @@ def swap_test(Phi, Q, floors):
 
 def _model_shapes(case, floors, n_modes):
     """Nominal-model mode shapes at the channels' floors (floor 0, the base: 0)."""
-    _, V = linalg.eigh(case.model.K0, case.model.M0)
-    V = V[:, :n_modes]
+    _, V = band_modes(case.model.M0, case.model.K0, min(n_modes, case.model.n))
     return np.array([V[fl - 1] if fl > 0 else np.zeros(V.shape[1]) for fl in floors])
 
 
@@ -173,8 +173,8 @@ def _first_is_mode_one(case, f_first):
     falls below the case's limit around mode 1, the coherent band begins above it, and
     the in-phase test would read mode 2 as sign-flipped channels (see
     docs/method/diagnosis.md)."""
-    w2 = linalg.eigh(case.model.K0, case.model.M0, eigvals_only=True)
-    f_nom = np.sqrt(np.clip(np.sort(w2), 0.0, None)) / (2 * np.pi)
+    omega, _ = band_modes(case.model.M0, case.model.K0, min(2, case.model.n))  # FE models: sparse
+    f_nom = np.sort(omega) / (2 * np.pi)
     if f_nom.size < 2 or f_nom[0] <= 0:
         return True, f_nom
     return bool(f_first < np.sqrt(f_nom[0] * f_nom[1])), f_nom
