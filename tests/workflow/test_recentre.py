@@ -78,6 +78,16 @@ def write_chain_case(folder, backend, noise=0.01, seed=3, **model):
     return path, change
 
 
+def exact_optimum(folder):
+    """(case, local solve, standard errors) of the chain on the exact sparse backend."""
+    path, _ = write_chain_case(str(folder), "sparse")
+    case = assemble(load_case(path))
+    exact = build_problem(case)
+    ref = exact.solve()
+    r, J = exact.residuals(ref.z)
+    return case, ref, np.sqrt(np.diag(standard_errors(J, r, exact.n_used)[0]))
+
+
 def test_recentred_reduced_fit_equals_exact_sparse_fit(tmp_path):
     """The nominal basis (modes up to 3 x the band's top, static and residual-flexibility
     vectors; ln|H| error < 1e-4 at z0) cannot follow 12 % stiffness changes: its fit is several
@@ -117,17 +127,13 @@ def test_band_continuation_reaches_the_exact_optimum_and_validates_its_key(tmp_p
     band list is refused with the key named."""
     from nlp.solve.continuation import band_continuation
     from nlp.errors import InputError
-    path, _ = write_chain_case(str(tmp_path / "c"), "sparse")
-    case = assemble(load_case(path))
-    direct = build_problem(case)
-    ref = direct.solve()
-    r, J = direct.residuals(ref.z)
-    se = np.sqrt(np.diag(standard_errors(J, r, direct.n_used)[0]))
+    case, ref, se = exact_optimum(tmp_path / "c")
     top = float(case.f[case.selected].max())
     logs = []
     _, res = band_continuation(case, [0.4 * top, 0.7 * top], log=logs.append)
     assert res.success and len(logs) == 3
     assert np.max(np.abs(res.z - ref.z) / se) < 0.1
+    path = case.config.path
     with open(path) as fh:
         cfg = yaml.safe_load(fh)
     cfg["search"]["band_continuation"] = [5.0, 3.0]
@@ -145,13 +151,7 @@ def test_diagnosis_baseline_recentres_its_reduced_basis(tmp_path):
     against the exact FRF (the nominal basis is biased by more than 1 SE here)."""
     from nlp.diagnosis.fitting import best_fit, diagnosis_problem
     from nlp.diagnosis.reduction import recentre_baseline
-    path, _ = write_chain_case(str(tmp_path / "exact"), "sparse")
-    case = assemble(load_case(path))
-    exact = build_problem(case)
-    ref = exact.solve()
-    r, J = exact.residuals(ref.z)
-    se = np.sqrt(np.diag(standard_errors(J, r, exact.n_used)[0]))
-
+    _, ref, se = exact_optimum(tmp_path / "exact")
     path_r, _ = write_chain_case(str(tmp_path / "reduced"), "reduced", reduced_cutoff=3.0)
     case_r = assemble(load_case(path_r))
     nominal = diagnosis_problem(case_r, case_r.target)
