@@ -33,7 +33,8 @@ from nlp.solve.identify import SCALE_EXPLANATION, scale_null_space
 from nlp.solve.problem import (PREFIT_MAX_ITER, Channel, SolverConfig, Target, UpdatingProblem,
                                prefit_residual)
 
-__all__ = ["Case", "assemble", "single_tests", "joint_case", "build_problem", "reduced_error"]
+__all__ = ["Case", "assemble", "single_tests", "joint_case", "build_problem", "reduced_basis_at",
+           "reduced_error"]
 
 
 @dataclass(frozen=True)
@@ -205,7 +206,7 @@ def build_problem(case, centre=None, check=True):
     try:
         with stage("build NLP") as bar:
             backend = choose_backend(cfg.model.frf_backend, case.model.n)
-            basis, info = _reduced_basis(case, centre, check) if backend == "reduced" else (None, None)
+            basis, info = reduced_basis_at(case, centre, check) if backend == "reduced" else (None, None)
             def on(residual, solver=solver):
                 return UpdatingProblem(case.model, case.damping, case.params, case.target,
                                        residual=residual, solver=solver,
@@ -231,7 +232,7 @@ def build_problem(case, centre=None, check=True):
     return problem
 
 
-def _reduced_basis(case, centre=None, check=True):
+def reduced_basis_at(case, centre=None, check=True):
     """The reduced basis at z = ``centre`` (default z0), after checking its FRF against the exact one there.
 
     Refuses (InputError on ``model.frf_backend``) when the error exceeds the

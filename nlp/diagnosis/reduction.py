@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from nlp.case.assemble import _reduced_basis, reduced_error
+from nlp.case.assemble import reduced_basis_at, reduced_error
 from nlp.solve.identify import standard_errors
 
 __all__ = ["uses_reduced", "basis_of", "recentre_baseline", "PASSES", "TOL_SE"]
@@ -25,6 +25,7 @@ _BASES = {}    # (id(model), centre bytes) -> basis; a process diagnoses one cas
 
 
 def uses_reduced(case):
+    """Does the case ask for the reduced backend (``model.frf_backend: reduced``)?"""
     return case.config.model.frf_backend == "reduced"
 
 
@@ -35,7 +36,7 @@ def basis_of(case):
     if key not in _BASES:
         while len(_BASES) >= 2:
             _BASES.pop(next(iter(_BASES)))
-        _BASES[key] = _reduced_basis(case, z, check=False)[0]
+        _BASES[key] = reduced_basis_at(case, z, check=False)[0]
     return _BASES[key]
 
 
