@@ -203,6 +203,11 @@ def points_stage(cfg, case, widen, hot, log):
     if hot:
         fit, held = hot_windows(cfg, case, fit, held, hot, log)
     held = np.setdiff1d(held, fit)
+    if held.size == 0 and not hot:  # held-out tests need points no fit used
+        fit = np.intersect1d(fit_windows(cfg, case, widen, windows=True), case.selected)
+        held = np.setdiff1d(case.selected, fit)
+        log(f"the case fits every frequency: the diagnosis fits its half-power windows ({fit.size} "
+            f"points) and holds out the other {held.size}")
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = fit_target(case, fit, sig_fit)
     base = diagnosis_problem(case, target)
@@ -254,11 +259,10 @@ def reduced_stage(cfg, case, points, base, log):
     """(case, points, baseline) on a reduced basis re-centred on the baseline's optimum
     (nlp.diagnosis.reduction): a basis at the nominal model would bias every fit."""
     def refit(c, z):
-        pr = diagnosis_problem(c, points.target)
-        return pr, best_fit(pr, [z])
+        return (pr := diagnosis_problem(c, points.target)), best_fit(pr, [z])
 
     centre, z = step("reduced basis", fingerprint(points.fit, base.res.z),
-                     lambda: recentre_baseline(case, refit, base.res.z, log)[1:])
+                     lambda: recentre_baseline(case, refit, base.res.z, log)[1:3])
     case = replace(case, basis_centre=centre)  # the last problem's basis is cached: no rebuild
     points = replace(points, base=diagnosis_problem(case, points.target))
     return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])

@@ -174,9 +174,10 @@ def quasi_se(pr, z, free=None):
     return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
 
 
-def fit_windows(cfg, case, mult):
-    """Points within mult x k half-power bandwidths of the peaks."""
-    if mult == 1:
+def fit_windows(cfg, case, mult, windows=False):
+    """Points within mult x k half-power bandwidths of the peaks (mult 1: the case's own
+    selection, unless ``windows``)."""
+    if mult == 1 and not windows:
         return case.selected
     c = replace(cfg, frequencies=replace(cfg.frequencies, k=mult * cfg.frequencies.k))
     idx = np.asarray(half_power_points(c, case.f, case.H, case.channels, case.target.excitation,

@@ -952,3 +952,23 @@ def test_signed_residuals_carry_the_objective_chi_square(tmp_path, residual):
     # equal to first order in the misfit)
     assert np.mean(r ** 2) == pytest.approx(np.mean(normalised(pr, z, case, fit, sig) ** 2),
                                             rel=1e-9 if residual == "log_magnitude" else 0.05)
+
+
+def test_case_fitting_every_frequency_holds_out_the_points_between_windows(tmp_path, rng):
+    """A case whose selection is every frequency (``method: all``) leaves the diagnosis no
+    held-out shoulders; it then fits the half-power windows and holds out the rest, so the
+    held-out tests have data no fit used (the windows are those of a half-power case)."""
+    m, k = np.array([5.0, 4.0, 3.0]), np.array([4000.0, 3500.0, 3000.0])
+    M, C, K = frame_matrices(m, k)
+    write_frf(tmp_path, "frf.npz", _accelerance(M, C, K, 1, rng))
+    cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 1)], {"fixed": {"m1": 5.0}},
+                          {"model": "rayleigh", "zeta": 0.015})
+    windows = fit_windows(cfg, assemble(cfg), 1)
+    cfg_all = replace(cfg, frequencies=replace(cfg.frequencies, method="all"))
+    case = assemble(cfg_all)
+    lines = []
+    points = D.points_stage(cfg_all, case, 1, (), lines.append)
+    assert np.array_equal(points.fit, np.intersect1d(windows, case.selected))
+    assert points.held.size > 0 and np.intersect1d(points.held, points.fit).size == 0
+    assert np.array_equal(np.union1d(points.fit, points.held), case.selected)
+    assert any("fits every frequency" in ln for ln in lines)
