@@ -61,6 +61,9 @@ def recentre_baseline(case, refit, z, log):
             f"standard errors, f {res.f:.6g}")
         if moves[-1] < TOL_SE:
             break
+    else:
+        log(f"warning: the reduced basis did not settle in {PASSES} passes (last move "
+            f"{moves[-1]:.3g} standard errors): the baseline depends on the basis by that much")
     check = reduced_error(case, pr.evaluator, z[:n_z]) if pr.params.n_z == n_z else None
     if check is not None:
         log(f"reduced vs exact FRF at the baseline: RMS ln|H| error {check['rms_log_error']:.2g} "
