@@ -14,6 +14,7 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, Hys
                                     SensorGain)
 from nlp.diagnosis.locations import floor_count, is_fe, story_count
 from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
+from nlp.frf.backends.terms import proportional
 from nlp.solve.identify import tangent_basis
 
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
@@ -26,12 +27,11 @@ def candidates(case):
     """Every family x location that the data could reveal, but the secondary
     oscillator (scanned separately; sensor delay needs the phase). Locations are the
     model's floors (an FE model's mass-carrying node levels, nlp.diagnosis.locations) and
-    stories (an FE model's stiffness groups); the flexible base and frame action are
-    shear-frame families."""
+    stories (an FE model's stiffness groups); frame action is a shear-frame family."""
     n = floor_count(case)
     fe = is_fe(case.model)
     out = [AddedMass(i) for i in range(1, n + 1)]
-    if not fe:
+    if base_candidate(case):
         out.append(BaseFlexibility())
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]
     out += [HystereticDamping()] + [HystereticDamping(s)
@@ -45,6 +45,13 @@ def candidates(case):
     if case.config.objective.residual == "complex":
         out += [SensorDelay(s) for s in sensors]
     return out
+
+
+def base_candidate(case):
+    """Whether a flexible base is a candidate: on a shear frame always; on an FE model (its
+    supports on one base DOF, :func:`nlp.frf.backends.terms._base`) when its damping is
+    proportional, the form the sparse terms carry."""
+    return not is_fe(case.model) or proportional(case.damping)
 
 
 def same(e, current):

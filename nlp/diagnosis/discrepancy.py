@@ -33,7 +33,8 @@ from nlp.diagnosis.checks import whole_band
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
 from nlp.diagnosis.families import BaseFlexibility, ExtraMode, SecondaryOscillator
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
-from nlp.diagnosis.locations import floor_count, is_fe
+from nlp.diagnosis.candidates import base_candidate
+from nlp.diagnosis.locations import floor_count
 from nlp.diagnosis.refit import refit
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
@@ -225,7 +226,7 @@ def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held):
     chi_d = 2 * res_d.f
     phi = dispersion(chi_d, n_fit - pr_d.params.n_z)
     cands = [SecondaryOscillator(p, f0=e.f0, resonances=(e.f0,))
-             for p in range(1, floor_count(case) + 1)] + ([] if is_fe(case.model) else [BaseFlexibility()])
+             for p in range(1, floor_count(case) + 1)] + ([BaseFlexibility()] if base_candidate(case) else [])
     out = []
     for cand in cands:
         r = refit(c_e, target, [], z_cur, cand, 0.0, n_fit, held, sig_held)

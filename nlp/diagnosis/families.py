@@ -80,7 +80,9 @@ class AddedMass:
 class BaseFlexibility:
     """A base DOF between ground and structure: mass m_b, sway spring k_b, dashpot c_b.
 
-    Every ground connection of the structure is re-routed through the base.
+    Every ground connection of the structure is re-routed through the base: the model's
+    forces act on its motion relative to the base, u - r u_b, with r the base's rigid
+    translation (``ref["r"]`` on an FE model: flexible supports; 1 on a shear frame's floors).
     Parameters: base mass [kg], base-to-first-floor stiffness ratio k_b/k_ref
     (log10) and base dashpot [N s/m].
     """
@@ -107,7 +109,8 @@ class BaseFlexibility:
     def apply(self, sys, th, ref):
         M, K, C, Kh = (ca.SX(sys[k]) for k in ("M", "K", "C", "Kh"))
         n = M.shape[0]
-        one = ca.DM.ones(n)
+        one = ca.DM.ones(n) if ref.get("r") is None else ca.vertcat(
+            ca.DM(np.asarray(ref["r"], float)), ca.DM.ones(n - len(ref["r"])))
         kb = 10 ** th[1]
         gK, gC, gH = ca.mtimes(K, one), ca.mtimes(C, one), ca.mtimes(Kh, one)
         return {"M": _augment(M, ca.SX.zeros(n), th[0]),

@@ -129,7 +129,8 @@ def fe_references(model, damping, ground_r, channel_rows=()):
     """Reference magnitudes of an FE model's families: a floor's mass m_ref [kg] (the
     mass on its rows), a story's stiffness k_ref [N/m] (half the force per unit uniform
     motion of one floor, others held: two stories resist it) and damping c_ref [N s/m]
-    (the same motion's damping force), each a mean over floors; and the weight vectors."""
+    (the same motion's damping force), each a mean over floors; the weight vectors; and
+    r, the rigid translation along the excitation (the ground's influence vector)."""
     fl = floors(model, ground_r, channel_rows)
     if not fl:
         raise ValueError("an FE model without node coordinates needs channels at DOFs that "
@@ -140,7 +141,11 @@ def fe_references(model, damping, ground_r, channel_rows=()):
         C = sp.csr_matrix(damping.matrix(damping.initial(), M, K))
     except (AttributeError, TypeError, ValueError):
         C = None
-    return {"m_ref": float(np.mean([r @ (M @ r) for r in e])),
+    d = _direction(model, ground_r)
+    r = np.asarray(ground_r, float) if ground_r is not None else \
+        np.array([1.0 if dof == d else 0.0 for _, dof in model.dofs])
+    return {"r": r,   # the rigid translation a flexible base moves the supports by
+            "m_ref": float(np.mean([r @ (M @ r) for r in e])),
             "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
             "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,
             "floors": floor_vectors(model, fl)}
@@ -154,7 +159,9 @@ def located(case, e):
     if not is_fe(model):
         return loc
     r, rows = _along(case)
-    if "floor" in loc:
+    if e.family == "base_flexibility":
+        loc["where"] = "under the supports"
+    elif "floor" in loc:
         loc["where"] = "at " + floor_name(model, r, loc["floor"], rows)
     elif "between" in loc and e.family == "hysteretic_damping":
         loc["where"] = f"in stiffness group {model.alpha_names[loc['between'][1] - 1]}"

@@ -180,7 +180,7 @@ class UpdatingProblem:
         self.total_mass = total_mass
         self.enrichments, self.refs = tuple(enrichments), dict(refs or {})
         self.reduced_info = None
-        self.backend = choose_backend(frf_backend, model.n, self.enrichments)
+        self.backend = choose_backend(frf_backend, model.n, self.enrichments, damping, target.channels)
         if target.kernel is not None and self.backend != "dense":
             raise ValueError("Target.kernel (a windowed estimate) needs the dense FRF backend")
         self._p, self.n_used = pack_data(target, residual)
@@ -213,7 +213,7 @@ class UpdatingProblem:
         """Sparse or reduced backend: r and J from SparseFRF, the NLP's functions as callbacks."""
         system = LinearSystem.from_model(self.model, self.damping, self.target)
         self.family_terms, terms = backend_terms(self.model, self.params, self.enrichments,
-                                                 self.refs, self.target, basis)
+                                                 self.refs, self.target, basis, self.damping)
         if basis is not None:
             system = system.project(basis)
         self.evaluator = ev = SparseFRF(system, self.damping, self.params, self.target,

@@ -23,15 +23,10 @@ def _tag(lev, col):
     return 10 * (lev + 1) + col
 
 
-def _frame():
-    """Two columns of nodes, 3 levels, DOFs ux (1) and uy (2) per node, listed level by level
-    with uy first (so the ux rows are not every other row from 0); springs in ux between
-    levels and to the ground, beams joining a level's two nodes, stiff uy springs."""
-    dofs = [(_tag(lv, c), d) for lv in range(LEVELS) for c in range(COLS) for d in (2, 1)]
-    n = len(dofs)
-    row = {nd: i for i, nd in enumerate(dofs)}
-    K = np.zeros((n, n))
-
+def _springs(K, row, ground_ux):
+    """Add the frame's springs to K: in ux between levels and from level 1 to ``ground_ux``
+    (a row, or None: the ground), in uy (stiff) between levels and to the ground, and beams
+    joining a level's two nodes."""
     def spring(a, b, k):
         for i, si in ((a, 1), (b, -1)):
             for j, sj in ((a, 1), (b, -1)):
@@ -40,10 +35,21 @@ def _frame():
 
     for lv in range(LEVELS):
         for c in range(COLS):
-            below = row[(_tag(lv - 1, c), 1)] if lv else None
+            below = row[(_tag(lv - 1, c), 1)] if lv else ground_ux
             spring(row[(_tag(lv, c), 1)], below, 2.0e5 * (1 + 0.1 * c))
             spring(row[(_tag(lv, c), 2)], row[(_tag(lv - 1, c), 2)] if lv else None, 5.0e6)
         spring(row[(_tag(lv, 0), 1)], row[(_tag(lv, 1), 1)], 8.0e5)
+    return K
+
+
+def _frame():
+    """Two columns of nodes, 3 levels, DOFs ux (1) and uy (2) per node, listed level by level
+    with uy first (so the ux rows are not every other row from 0); springs in ux between
+    levels and to the ground, beams joining a level's two nodes, stiff uy springs."""
+    dofs = [(_tag(lv, c), d) for lv in range(LEVELS) for c in range(COLS) for d in (2, 1)]
+    n = len(dofs)
+    row = {nd: i for i, nd in enumerate(dofs)}
+    K = _springs(np.zeros((n, n)), row, None)
     masses = np.array([NODE_MASS[nd // 10 - 1][nd % 10] for nd, _ in dofs])
     coords = tuple((_tag(lv, c), (6.0 * c, 3.0 * (lv + 1))) for lv in range(LEVELS)
                    for c in range(COLS))
@@ -141,3 +147,54 @@ def test_without_coordinates_the_channels_are_the_locations():
     fl = floors(bare, r, (row[(21, 1)], row[(10, 1)], row[(21, 1)]))
     assert [f.rows for f in fl] == [(row[(21, 1)],), (row[(10, 1)],)]
     assert fl[0].name == "node 21 (DOF 1)"
+
+
+def test_flexible_supports_reroute_the_ground_springs_through_a_base():
+    """A flexible base on an FE model (sparse terms) against the frame rebuilt by hand with
+    its ux ground springs attached to a base DOF u_b, itself on a spring k_b and dashpot c_b
+    to the ground (the uy springs stay on the ground: the base sways in x only), stiffness-
+    proportional damping on the rebuilt structure, relative coordinates, q = Z^-1 (-M r)."""
+    from nlp.diagnosis.families import BaseFlexibility
+    from nlp.diagnosis.locations import located
+    from nlp.diagnosis.units import place
+    from types import SimpleNamespace
+    model, row, r = _frame()
+    damping = RayleighDamping(0.0, 0.0005)   # a0 = 0: the rebuilt C is a1 K alone
+    refs = fe_references(model, damping, r)
+    np.testing.assert_array_equal(refs["r"], r)
+    m_b, k_b, c_b = 900.0, 6.0e5, 1500.0
+    ps = (Parameter("k", "stiffness", 0.0, -0.5, 1.0),
+          Parameter("a0", "damping", 1.0, 0.0, 30.0), Parameter("a1", "damping", 1.0, 0.0, 30.0))
+    fams = [BaseFlexibility()]
+    params = extend_parameters(ParameterSet(ps, 1, 0), fams, refs,
+                               [[m_b, math.log10(k_b), c_b]])
+    w = np.linspace(5.0, 80.0, 25)
+    chans = tuple(Channel(f"a{nd}", row[(nd, 1)], "absolute_accelerance") for nd in (10, 21, 31))
+    tg = Target(w, np.ones((3, w.size), complex), np.ones((3, w.size)), chans, "ground", None,
+                ground_r=r)
+    z = np.asarray(params.z_from_theta(np.array([0.15, 1.0, 1.0, m_b, math.log10(k_b), c_b])))
+    pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=fams, refs=refs, frf_backend="sparse")
+    assert pr.backend == "sparse"
+    H = pr.channel_frfs(z, w)
+
+    n = model.n
+    b = n   # the base DOF: the ux ground springs end on it
+    K = 1.15 * _springs(np.zeros((n + 1, n + 1)), row, b)   # the stiffness group at alpha = 0.15
+    M = np.pad(model.M0.toarray(), (0, 1))
+    M[b, b] = m_b
+    C = 0.0005 * K
+    K[b, b] += k_b
+    C[b, b] += c_b
+    load = -M @ np.append(r, 1.0)
+    q = np.array([np.linalg.solve(K - x ** 2 * M + 1j * x * C, load) for x in w]).T
+    ref = -(w ** 2) * q[[row[(10, 1)], row[(21, 1)], row[(31, 1)]]] + 1
+    np.testing.assert_allclose(H, ref, rtol=1e-9)
+    rigid = UpdatingProblem(model, damping, ParameterSet(ps, 1, 0), tg, frf_backend="sparse",
+                            solver=SolverConfig(compile=False))
+    assert np.abs(H / rigid.channel_frfs(z[:3], w) - 1).max() > 0.05   # the base matters here
+    dense = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                            enrichments=fams, refs=refs, frf_backend="dense")
+    np.testing.assert_allclose(dense.channel_frfs(z, w), ref, rtol=1e-9)
+    case = SimpleNamespace(model=model, target=SimpleNamespace(ground_r=r))
+    assert place(located(case, BaseFlexibility())) == "under the supports"

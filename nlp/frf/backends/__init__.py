@@ -29,12 +29,13 @@ DENSE_MAX = 6  # DOFs: above, the cold build of the dense backend (gcc) outweigh
 ENRICHED_DENSE_MAX = 64
 
 
-def choose(requested, n, enrichments=()):
-    """The backend that runs: ``requested`` unless it is ``auto``."""
+def choose(requested, n, enrichments=(), damping=None, channels=()):
+    """The backend that runs: ``requested`` unless it is ``auto``; dense where the sparse
+    terms cannot carry the families (:func:`nlp.frf.backends.terms.supported`)."""
     if requested not in BACKENDS:
         raise ValueError(f"frf_backend must be one of {BACKENDS}, got {requested!r}")
     if enrichments:
-        if not supported(enrichments) or (requested == "auto" and n <= ENRICHED_DENSE_MAX):
+        if not supported(enrichments, damping, channels) or (requested == "auto" and n <= ENRICHED_DENSE_MAX):
             return "dense"
         return "sparse" if requested == "auto" else requested
     if requested != "auto":

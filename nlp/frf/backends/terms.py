@@ -31,12 +31,27 @@ __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_v
 KINDS = ("K", "M", "C", "H")
 MU_MIN = 1e-12   # an appendage's smallest mass ratio on the sparse backend (see _appendage)
 STRUCTURAL = ("added_mass", "secondary_oscillator", "local_damper", "hysteretic_damping",
-              "nonadjacent_coupling")
+              "nonadjacent_coupling", "base_flexibility")
 
 
-def supported(enrichments):
-    """Whether every family is carried by sparse terms (the others need the dense backend)."""
-    return all(getattr(e, "family", None) in STRUCTURAL + OUTPUT for e in enrichments)
+def proportional(damping):
+    """Whether C = cM M + cK K (Rayleigh): a flexible base then couples to C through M and K
+    alone (:func:`_base`); a rank-m or dashpot damping term has no such form here."""
+    if damping is None:
+        return False
+    _, _, S, g = damping.structure(np.ones(len(damping.names)))
+    return S is None and len(g) == 0
+
+
+def supported(enrichments, damping=None, channels=()):
+    """Whether every family is carried by sparse terms (the others need the dense backend).
+    A flexible base is, with proportional damping and no sensor on the base (a base sensor
+    reads the appended DOF, which only the dense backend's outputs know)."""
+    fams = [getattr(e, "family", None) for e in enrichments]
+    if "base_flexibility" in fams and (not proportional(damping)
+                                       or any(ch.dof < 0 for ch in channels)):
+        return False
+    return all(f in STRUCTURAL + OUTPUT for f in fams)
 
 
 def floor_vector(ref, floor, n):
@@ -131,6 +146,49 @@ def _appendage(bld, e, th, ref, ctx):
     bld.add("C", v, 2 * th[2] * ms * ws)
 
 
+def _bordered(A, r, x):
+    """The coupling of a base DOF x to the model's DOFs through A: [[0, -A r], [-r^T A, r^T A r]]
+    on x + 1 DOFs, A acting on the motion relative to the base u - r u_b."""
+    g = np.asarray(A @ r, float).ravel()
+    i = np.flatnonzero(g)
+    rows = np.concatenate([i, np.full(i.size, x), [x]])
+    cols = np.concatenate([np.full(i.size, x), i, [x]])
+    vals = np.concatenate([-g[i], -g[i], [r @ g]])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(x + 1, x + 1))
+
+
+def _base(bld, e, th, ref, ctx):
+    """A base DOF u_b under every support, along the base's direction r (``ref["r"]``: the
+    rigid translation, 1 on the DOFs along it; the ground's influence vector, or 1 on a shear
+    frame's floors). The model's forces act on u - r u_b, so its K and C gain the border of
+    :func:`_bordered` (K = K0 + sum alpha_i K_i, Eqn 23; C = cM M + cK K of the damping),
+    and the base has mass m_b, a spring k_b and a dashpot c_b to the ground; a rigid ground
+    motion carries it (r_b = 1). The same physics as the dense
+    :meth:`nlp.diagnosis.families.BaseFlexibility.apply`."""
+    model, n = ctx["model"], bld.n
+    if ctx.get("damping") is None or not proportional(ctx["damping"]):
+        raise ValueError("a flexible base on the sparse backend needs Rayleigh damping")
+    r = np.asarray(ref["r"] if ref.get("r") is not None else bld.r[:n], float)
+    x = bld.new_dof(1.0)
+    ex = np.zeros(x + 1)
+    ex[x] = 1.0
+    alpha, beta = ctx["alpha"], ctx["beta"]
+    cM, cK, _, _ = ctx["damping"].structure(ctx["theta_d"])
+    for kind, A, c in list(bld.items):   # a hysteretic loss so far acts on u - r u_b too
+        if KINDS[kind] == "H":
+            bld.add_matrix("H", _bordered(sp.csr_matrix(A)[:n, :n], r, x), c)
+    bld.add("M", ex, th[0])
+    bld.add("K", ex, 10 ** th[1])
+    bld.add("C", ex, th[2])
+    for kind, A0, infl, coef in (("K", model.K0, model.K_infl, alpha),
+                                 ("C", model.K0, model.K_infl, alpha),
+                                 ("C", model.M0, model.M_infl, beta)):
+        scale = 1.0 if kind == "K" else (cK if A0 is model.K0 else cM)
+        bld.add_matrix(kind, _bordered(A0, r, x), scale)
+        for i, Ai in enumerate(infl):
+            bld.add_matrix(kind, _bordered(Ai, r, x), scale * coef[i])
+
+
 def _local_damper(bld, e, th, ref, ctx):
     v = floor_vector(ref, e.i, bld.n) - floor_vector(ref, e.j, bld.n)
     bld.add("C", v, th[0])
@@ -159,7 +217,7 @@ def _hysteretic(bld, e, th, ref, ctx):
 
 _TRANSLATE = {"added_mass": _added_mass, "secondary_oscillator": _appendage,
               "local_damper": _local_damper, "nonadjacent_coupling": _coupling,
-              "hysteretic_damping": _hysteretic}
+              "hysteretic_damping": _hysteretic, "base_flexibility": _base}
 
 
 def _pad(A, size):
@@ -167,17 +225,20 @@ def _pad(A, size):
     return sp.csc_matrix((A.data, (A.row, A.col)), shape=(size, size))
 
 
-def family_terms(model, params, enrichments, refs, target):
+def family_terms(model, params, enrichments, refs, target, damping=None):
     """The :class:`Terms` of ``enrichments`` (their parameters the "physics" entries of
-    ``params``, in order) on ``model`` for ``target``'s excitation and channels."""
-    if not supported(enrichments):
-        bad = sorted({e.family for e in enrichments} - set(STRUCTURAL + OUTPUT))
+    ``params``, in order) on ``model`` for ``target``'s excitation and channels; ``damping``
+    the model's (a flexible base couples to it)."""
+    if not supported(enrichments, damping, target.channels):
+        bad = sorted({e.family for e in enrichments} - set(STRUCTURAL + OUTPUT)) or \
+            ["base_flexibility (needs Rayleigh damping and no base sensor)"]
         raise ValueError(f"families {bad} are not carried by the sparse FRF backends")
     n = model.n
     theta = ca.SX.sym("theta", params.T.shape[0])
-    sa, _, _ = params.slices()
+    sa, sb, sd = params.slices()
     th = theta[params.physics_slice()]
-    ctx = {"alpha": theta[sa], "model": model}
+    ctx = {"alpha": theta[sa], "beta": theta[sb], "theta_d": theta[sd], "damping": damping,
+           "model": model}
     r = getattr(target, "ground_r", None)
     bld = _Builder(n, np.ones(n) if r is None else np.asarray(r, float))
     k = 0
@@ -224,10 +285,10 @@ def with_terms(terms, theta, M, K, C):
     return tuple(out)
 
 
-def backend_terms(model, params, enrichments, refs, target, basis=None):
+def backend_terms(model, params, enrichments, refs, target, basis=None, damping=None):
     """(terms on the model's own DOFs, terms the backend runs: projected on ``basis`` when
     reduced); (None, None) without families."""
     if not enrichments:
         return None, None
-    full = family_terms(model, params, enrichments, refs, target)
+    full = family_terms(model, params, enrichments, refs, target, damping)
     return full, (full if basis is None else full.project(basis))

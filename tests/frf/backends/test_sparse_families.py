@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from nlp.diagnosis.families import (AddedMass, ExtraMode, HystereticDamping, LocalDamper,
+from nlp.diagnosis.families import (AddedMass, BaseFlexibility, ExtraMode, HystereticDamping,
+                                    LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain, extend_parameters)
 from nlp.frf.backends import choose
@@ -35,6 +36,12 @@ CASES = {
     "delay": ([SensorDelay("c3")], [[4.0]]),
     "extra_mode": ([ExtraMode(9.0, ("c1", "c4"), (0, 2), (0.01, 2.0))],
                    [[9.1, 0.02, 0.3, -0.2]]),
+    "base": ([BaseFlexibility()], [[1.0, math.log10(2500.0) + 0.5, 3.0]]),
+    # an appendage and a loss before the base (both re-routed through it), a mass after it
+    "several_base": ([SecondaryOscillator(2, 4.0), HystereticDamping(), BaseFlexibility(),
+                      AddedMass(4), NonadjacentCoupling(1, 3)],
+                     [[0.03, 4.4, 0.05], [0.02], [2.0, math.log10(2500.0) + 1.0, 5.0], [0.3],
+                      [150.0]]),
     "several": ([ExtraMode(9.0, ("c1", "c2"), (0, 2), (0.01, 2.0)), NonadjacentCoupling(2, 4),
                  SecondaryOscillator(2, 4.0), HystereticDamping(), AddedMass(4), SensorGain("c1"),
                  SensorDelay("c1")],
@@ -92,7 +99,7 @@ def test_sparse_equals_dense(name, excitation, residual):
     np.testing.assert_allclose(Js, Jd, rtol=1e-8, atol=1e-8 * np.abs(Jd).max())
 
 
-@pytest.mark.parametrize("name", ["appendage", "hysteretic", "several"])
+@pytest.mark.parametrize("name", ["appendage", "hysteretic", "several", "several_base"])
 def test_sparse_jacobian_finite_difference(name):
     fams, values = CASES[name]
     pr = _problem(fams, values, "sparse", "ground", "complex")
@@ -150,6 +157,18 @@ def test_choose_keeps_sparse_for_large_models_with_families():
     assert choose("sparse", 4, fams) == "sparse"
     assert choose("dense", 120, fams) == "dense"
     assert choose("reduced", 120, fams) == "reduced"
+
+
+def test_flexible_base_is_sparse_only_with_rayleigh_damping_and_no_base_sensor():
+    from nlp.model.damping import GeneralDamping
+    fams = [BaseFlexibility()]
+    ray = RayleighDamping(A0, A1)
+    floor = (Channel("a1", 0, "absolute_accelerance"),)
+    base = floor + (Channel("a0", -1, "absolute_accelerance"),)
+    assert choose("sparse", 120, fams, ray, floor) == "sparse"
+    assert choose("sparse", 120, fams, ray, base) == "dense"
+    assert choose("sparse", 120, fams, GeneralDamping(np.eye(4)), floor) == "dense"
+    assert choose("sparse", 120, fams) == "dense"   # damping unknown
 
 
 def test_reduced_backend_projects_the_terms():
