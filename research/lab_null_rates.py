@@ -109,6 +109,11 @@ def statistics(case):
     st["best_dbic"] = min((c[1] for c in structural), default=0.0)
     st["best_appendage_dbic"] = min((c[1] for c in cands if c[0] == "secondary_oscillator"),
                                     default=0.0)
+    lc = d.get("level_comparison") or {}
+    nl = [f for f in d["findings"] if f["physics"] == "nonlinearity"]
+    st["level_change"] = abs(nl[0]["parameters"]["relative_change"]) if nl else 0.0
+    sh = lc.get("shared_stiffness") or {}
+    st["level_excess"] = sh["excess"] / sh["limit"] if sh.get("limit") else 0.0
     st["structural_findings"] = [f["physics"] for f in d["findings"] if f["physics"] not in SETUP]
     st["setup_findings"] = [f["physics"] for f in d["findings"] if f["physics"] in SETUP]
     st["verdict"] = d["verdict"]
@@ -126,6 +131,10 @@ RULES = [
     ("STORY_ZETA", priors.STORY_ZETA, "story_zeta", ">", "largest story damping ratio over the "
      "median modal one (lower bound)"),
     ("DAMPER_SE", priors.DAMPER_SE, "damper_z", ">", "largest story dashpot excess / SE"),
+    ("level price", 1.0, "level_excess", ">", "two levels' least chi-square rise for one set of "
+     "masses and stiffnesses, over BIC's price (above 1: level-dependent)"),
+    ("(level change)", 0.0, "level_change", ">", "|relative change| of the named nonlinearity's "
+     "story stiffness between levels (single-level nulls: 0)"),
     ("BIC_ACCEPT", -evidence.BIC_ACCEPT, "best_dbic", "<", "most negative scaled dBIC of a "
      "structural candidate refit"),
     ("STRONG_BIC", -evidence.STRONG_BIC, "best_appendage_dbic", "<", "most negative scaled dBIC "
