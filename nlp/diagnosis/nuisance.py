@@ -67,11 +67,14 @@ class Held:
                 out.append(p)
         return out
 
+    def full(self, th):
+        """The inner family's parameter vector: the free ones th, the held ones constants."""
+        held, it = self.held, iter(range(len(self.names)))
+        return ca.vertcat(*[held[n] if n in held else th[next(it)] for n in self.inner.names])
+
     def apply(self, sys, th, ref):
         """The inner family's change of the system, its held parameters as constants."""
-        held, it = self.held, iter(range(len(self.names)))
-        full = [held[n] if n in held else th[next(it)] for n in self.inner.names]
-        return self.inner.apply(sys, ca.vertcat(*full), ref)
+        return self.inner.apply(sys, self.full(th), ref)
 
     def __getattr__(self, name):
         # the family's own attributes (floor, f0) for code that reads them; never the

@@ -245,7 +245,9 @@ def family_terms(model, params, enrichments, refs, target, damping=None):
     for e in enrichments:
         th_e = th[k:k + len(e.names)]
         if e.family in _TRANSLATE:
-            _TRANSLATE[e.family](bld, e, th_e, refs, ctx)
+            # a family with parameters held (nlp.diagnosis.nuisance.Held): its own vector
+            inner, th_i = (e.inner, e.full(th_e)) if hasattr(e, "full") else (e, th_e)
+            _TRANSLATE[e.family](bld, inner, th_i, refs, ctx)
         k += len(e.names)
     size = n + bld.extra
     P = tuple(_pad(A, size) for _, A, _ in bld.items)

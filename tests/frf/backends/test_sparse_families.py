@@ -11,6 +11,7 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, ExtraMode, Hyste
                                     LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain, extend_parameters)
+from nlp.diagnosis.nuisance import hold
 from nlp.frf.backends import choose
 from nlp.model.damping import RayleighDamping
 from nlp.model.nominal import shear_frame, shear_stiffness
@@ -42,6 +43,10 @@ CASES = {
                       AddedMass(4), NonadjacentCoupling(1, 3)],
                      [[0.03, 4.4, 0.05], [0.02], [2.0, math.log10(2500.0) + 1.0, 5.0], [0.3],
                       [150.0]]),
+    # parameters held at their reference (nlp.diagnosis.nuisance): constants of the terms
+    "held_appendage": ([hold(SecondaryOscillator(3, 6.0), ["zeta_s3"], REF)], [[0.05, 5.5]]),
+    "held_base": ([hold(BaseFlexibility(), ["m_base", "c_base"], REF)],
+                  [[math.log10(2500.0) + 0.5]]),
     "several": ([ExtraMode(9.0, ("c1", "c2"), (0, 2), (0.01, 2.0)), NonadjacentCoupling(2, 4),
                  SecondaryOscillator(2, 4.0), HystereticDamping(), AddedMass(4), SensorGain("c1"),
                  SensorDelay("c1")],
