@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from nlp.frf.backends.outputs import OUTPUT, Outputs
+from nlp.model.damping import RayleighDamping
 
 __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_vector",
            "terms_state", "with_terms", "backend_terms"]
@@ -35,12 +36,9 @@ STRUCTURAL = ("added_mass", "secondary_oscillator", "local_damper", "hysteretic_
 
 
 def proportional(damping):
-    """Whether C = cM M + cK K (Rayleigh): a flexible base then couples to C through M and K
+    """Whether C = a0 M + a1 K (Rayleigh): a flexible base then couples to C through M and K
     alone (:func:`_base`); a rank-m or dashpot damping term has no such form here."""
-    if damping is None:
-        return False
-    _, _, S, g = damping.structure(np.ones(len(damping.names)))
-    return S is None and len(g) == 0
+    return isinstance(damping, RayleighDamping)
 
 
 def supported(enrichments, damping=None, channels=()):
