@@ -347,7 +347,7 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
                               cfg.search), case, points.target, state["current"])
         better = repolish_step(fingerprint(state["z"], [r["chi2"] for r in results]),
                                lambda: repolish(state, results, case, points.held,
-                                                points.sig_held),
+                                                points.sig_held, base.n_fit),
                                state["problem"]) if repolished < MAX_REPOLISH else None
         if better is not None:
             # the current optimum was a local minimum: judge the candidates against the

@@ -323,14 +323,15 @@ def test_current_model_re_solved_from_a_refit_leaves_a_local_minimum(tmp_path, r
     stuck = {"current": [], "z": pr.z0, "chi": 2 * float(pr.objective(pr.z0)), "problem": pr,
              "held": float(np.mean(normalised(pr, pr.z0, case, held, sig_h) ** 2))}
     refit = {"z": np.concatenate([truth * 1.01, [0.0]]), "chi2": 2 * ref.f - 5.0}
-    better = repolish(stuck, [refit], case, held, sig_h)
+    better = repolish(stuck, [refit], case, held, sig_h, pr.n_used)
     assert better is not None and better["chi"] == pytest.approx(2 * ref.f, rel=1e-6)
     # started from the refit's optimum without its candidate (this frame has one basin, so
     # the start is what shows the mechanism)
     assert np.allclose(better["result"].z0, np.clip(truth * 1.01, *pr.bounds))
     assert better["chi"] / (pr.n_used - pr.params.n_z) < 1.5   # inside the model class
     at_opt = dict(stuck, z=ref.z, chi=2 * ref.f)
-    assert repolish(at_opt, [dict(refit, chi2=2 * ref.f - 0.5)], case, held, sig_h) is None
+    assert repolish(at_opt, [dict(refit, chi2=2 * ref.f - 0.5)], case, held, sig_h,
+                    pr.n_used) is None
 
 
 def test_effect_within_three_standard_errors_is_not_accepted():
