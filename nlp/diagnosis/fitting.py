@@ -70,15 +70,15 @@ def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, o
                          enrichments=enrichments, refs=refs,
                          frf_backend="reduced" if reduced else "auto",
                          basis=basis_of(case) if reduced else None)
-    # a capped refit bounds its optimum and is continued when adopted (refit.continue_refit);
-    # Newton steps from wherever each of its starts stopped cost more than the cap saves
-    # (minutes per round on a refit of a few thousand residuals and some 30 parameters;
-    # see docs/method/diagnosis.md)
     # on the numeric backends (FE models) Levenberg-Marquardt prefits and solves: IPOPT spent
     # 92 % of a planted-support baseline backtracking its line search on full FRF evaluations
     # (56 min unfinished); from the same far starts LM took 4-5 s a start against 18-40 s and
     # reached a lower minimum (docs/method/diagnosis.md, "Families on FE models")
     pr.lm_prefit = pr.lm_local = pr.backend != "dense"
+    # a capped refit bounds its optimum and is continued when adopted (refit.continue_refit);
+    # Newton steps from wherever each of its starts stopped cost more than the cap saves
+    # (minutes per round on a refit of a few thousand residuals and some 30 parameters;
+    # see docs/method/diagnosis.md)
     pr.polish_unconverged = max_iter is None
     # its objective is half a chi-square, the unit of the polish's stationarity test
     pr.early_polish = True

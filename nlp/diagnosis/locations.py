@@ -142,9 +142,9 @@ def fe_references(model, damping, ground_r, channel_rows=()):
     except (AttributeError, TypeError, ValueError):
         C = None
     d = _direction(model, ground_r)
-    r = np.asarray(ground_r, float) if ground_r is not None else \
+    rigid = np.asarray(ground_r, float) if ground_r is not None else \
         np.array([1.0 if dof == d else 0.0 for _, dof in model.dofs])
-    return {"r": r,   # the rigid translation a flexible base moves the supports by
+    return {"r": rigid,   # the rigid translation a flexible base moves the supports by
             "m_ref": float(np.mean([r @ (M @ r) for r in e])),
             "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
             "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,
