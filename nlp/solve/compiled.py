@@ -36,7 +36,8 @@ class BufferedFunction:
     """A CasADi function of dense inputs evaluated into numpy arrays held by it (CasADi's
     buffer interface). A DM result reaches numpy through a Python list, about 100 ns per
     entry: a Jacobian of 240,000 entries took 26 ms to convert after 3 ms to evaluate, and
-    the conversions were a fifth of a diagnosis (py-spy). Returns fresh arrays."""
+    the conversions were a fifth of a diagnosis (py-spy). Returns fresh arrays. One call at a
+    time, as the solver objects it sits beside (one per worker process)."""
 
     def __init__(self, f):
         self.f = f
@@ -47,21 +48,24 @@ class BufferedFunction:
             self._buf.set_arg(i, memoryview(a))
         for i, r in enumerate(self._res):
             self._buf.set_res(i, memoryview(r))
-        self._out = [f.sparsity_out(i) for i in range(f.n_out())]
+        # (shape, None) for a dense output, else (shape, (rows, cols) of its nonzeros)
+        self._out = []
+        for i in range(f.n_out()):
+            sp = f.sparsity_out(i)
+            self._out.append((sp.shape, None if sp.is_dense() else sp.get_triplet()))
 
     def __call__(self, *args):
         for a, v in zip(self._args, args):
             a[:] = np.asarray(v, float).ravel(order="F")
         self._eval()
-        return [self._full(sp, r) for sp, r in zip(self._out, self._res)]
+        return [self._full(shape, rc, r) for (shape, rc), r in zip(self._out, self._res)]
 
     @staticmethod
-    def _full(sp, nz):
-        if sp.is_dense():
-            return nz.reshape(sp.shape, order="F").copy()
-        out = np.zeros(sp.shape)
-        rows, cols = sp.get_triplet()
-        out[rows, cols] = nz
+    def _full(shape, rc, nz):
+        if rc is None:
+            return nz.reshape(shape, order="F").copy()
+        out = np.zeros(shape)
+        out[rc[0], rc[1]] = nz
         return out
 
 
