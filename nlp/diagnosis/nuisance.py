@@ -9,6 +9,7 @@ significance, held-out test). It is accepted only if it still passes; its report
 the held parameter as an assumption, never as an estimate.
 """
 
+import math
 from dataclasses import dataclass
 
 import casadi as ca
@@ -84,20 +85,42 @@ class Held:
         return getattr(self.inner, name)
 
 
-def reference(e, names, refs):
+# A held value the data exclude would be an assumption the fit contradicts: its refit then
+# trades the other parameters against it (a base dashpot held at 25 times the largest value
+# the data allowed doubled the chi-square of its refit). The data allow the
+# values within ALLOWED_Z standard errors of the free estimate: a two-sided 95 % interval
+# of the Gauss-Newton estimate, the linearised likelihood-ratio test at that level.
+ALLOWED_Z = 2.0
+
+
+def reference(e, names, refs, free=None):
     """{name: value}: the value each of e's parameters `names` is held at, the family's own
     start (spec(refs)["initial"]): a stated physical reference, not a fitted value. An
     appendage's damping ratio 0.02 (light structural damping), a base of half the mean floor
-    mass, a base dashpot of c_ref (the mean diagonal of the case's damping matrix)."""
+    mass, a base dashpot of c_ref (the mean diagonal of the case's damping matrix).
+
+    free : the family's free refit result, or None. A reference outside the values its data
+    allow (estimate +- ALLOWED_Z standard errors) is replaced by the nearest value they allow,
+    so a held parameter is never one the data exclude; always within the family's bounds."""
     sp = e.spec(refs)
-    return {n: float(v) for n, v in zip(e.names, sp["initial"]) if n in names}
+    out = {}
+    for n, v, lo, hi in zip(e.names, sp["initial"], sp["lower"], sp["upper"]):
+        if n not in names:
+            continue
+        v = float(v)
+        est = (free or {}).get("parameters", {}).get(n)
+        se = (free or {}).get("uncertainty", {}).get(n)
+        if est is not None and se is not None and math.isfinite(se):
+            v = min(max(v, est - ALLOWED_Z * se), est + ALLOWED_Z * se)
+        out[n] = min(max(v, float(lo)), float(hi))
+    return out
 
 
-def hold(e, names, refs):
+def hold(e, names, refs, free=None):
     """e with its parameters `names` held at their reference values (on top of any e holds
-    already)."""
+    already); free: e's free refit result (:func:`reference`)."""
     inner, held = (e.inner, e.held) if isinstance(e, Held) else (e, {})
-    held.update(reference(e, names, refs))
+    held.update(reference(e, names, refs, free))
     return Held(inner, tuple((n, held[n]) for n in inner.names if n in held))
 
 
@@ -153,9 +176,13 @@ def settle(results, judge, refit_held, refs, log=print):
         if not todo:
             return phi
         for i, names in todo:
-            e = hold(results[i]["enrichment"], names, refs)
+            e = hold(results[i]["enrichment"], names, refs, results[i])
+            stated = reference(results[i]["enrichment"], names, refs)
             new = refit_held(results[i], e)
             new["held"] = e.held
+            moved = {n: v for n, v in stated.items() if v != e.held[n]}
+            if moved or results[i].get("held_reference"):
+                new["held_reference"] = {**results[i].get("held_reference", {}), **moved}
             results[i] = new
         phi = judge(results)
         for r in results:   # judge clears every reason: a held refusal says what was held

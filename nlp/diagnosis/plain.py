@@ -37,20 +37,27 @@ def finding_values(f, refs=None):
     if f.get("not_determined"):
         vals.append("not determined by the data: " + ", ".join(
             f"{quantity(f.get('physics'), n, 0.0).label} ({n})" for n in f["not_determined"]))
-    vals += held_words(f.get("physics"), f.get("held") or {}, labels=True)
+    vals += held_words(f.get("physics"), f.get("held") or {}, labels=True,
+                       stated=f.get("held_reference"))
     return vals
 
 
-def held_words(physics, held, labels=False):
+def held_words(physics, held, labels=False, stated=None):
     """'zeta_s4 held at 2 % (assumed: the data do not determine it)' for each parameter a
     finding holds at its reference value (nlp.diagnosis.nuisance): an assumption, never an
-    estimate, so no error is given."""
+    estimate, so no error is given. stated: {name: reference} of those held not at their
+    stated reference, which the data exclude, but at the nearest value the data allow."""
     out = []
     for n, v in held.items():
         q = quantity(physics, n, float(v))
         head = f"{q.label} {q.symbol}" if labels else n
-        out.append(f"{head} held at {fmt_sig(q.value)}{' ' + q.unit if q.unit else ''} "
-                   "(assumed: the data do not determine it)")
+        unit = " " + q.unit if q.unit else ""
+        why = "(assumed: the data do not determine it)"
+        if n in (stated or {}):
+            ref = quantity(physics, n, float(stated[n]))
+            why = (f"(the data do not determine it, but exclude its reference "
+                   f"{fmt_sig(ref.value)}{unit}: the nearest value they allow)")
+        out.append(f"{head} held at {fmt_sig(q.value)}{unit} {why}")
     return out
 
 

@@ -68,7 +68,8 @@ def statement(r):
     if r.get("not_determined"):
         pars += "; not determined by the data: " + ", ".join(r["not_determined"])
     if r.get("held"):
-        pars += "; " + "; ".join(held_words(r["physics"], r["held"]))
+        pars += "; " + "; ".join(held_words(r["physics"], r["held"],
+                                            stated=r.get("held_reference")))
     return f"{REFIT_STATEMENT}{WORDS[r['physics']]} {where} ({pars})."
 
 
@@ -86,6 +87,8 @@ def public(r):
     if r.get("held"):
         # an assumption, not an estimate: no error (nlp.diagnosis.nuisance)
         d["held"] = dict(r["held"])
+        if r.get("held_reference"):
+            d["held_reference"] = dict(r["held_reference"])
     d["evidence"] = {"score": r["score"], "delta_bic": r["delta_bic"], "chi2": r["chi2"],
                      "held_out_chi2": r["held_out"], "phi": r.get("phi", 1.0),
                      "raw_delta_chi2": r.get("raw_delta_chi2"),

@@ -17,7 +17,7 @@ from nlp.diagnosis.driver import diagnose
 from nlp.diagnosis.families import BaseFlexibility, SecondaryOscillator, extend_parameters
 from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, noise_sigma,
                                    normalised, scatter_best)
-from nlp.diagnosis.nuisance import Held, hold, hold_open_nuisance, settle
+from nlp.diagnosis.nuisance import Held, hold, hold_open_nuisance, reference, settle
 from nlp.diagnosis.refit import refit
 from nlp.diagnosis.verdict import public
 from nlp.model.damping import GeneralDamping
@@ -219,3 +219,45 @@ def test_no_finding_of_a_diagnosis_reports_an_undetermined_parameter(tmp_path):
         for n, v in g.get("parameters", {}).items():
             if n != "log10_kb":   # a logarithm's size is not its certainty
                 assert g["uncertainty"][n] < abs(v), (g["physics"], n)
+
+
+def test_a_reference_the_data_exclude_is_replaced_by_the_nearest_value_they_allow():
+    """A held value is the stated reference when the free estimate's 2-SE interval holds
+    it, else that interval's nearest end, and always within the family's bounds. A base
+    dashpot estimated at 0 +- 100 N s/m (the data allow at most 200) is held at 200, not
+    at its reference c_ref = 1000; at 0 +- 800 the reference 1000 is allowed and kept;
+    a mass estimated at -10 +- 1 (the interval below the lower bound 0) is held at 0.
+    The report says the reference was excluded, and by how much it was moved."""
+    ref = {"m_ref": 2.5, "k_ref": 2500.0, "c_ref": 1000.0}
+    e = BaseFlexibility()
+
+    def free(c, c_se, m=1.0, m_se=0.1):
+        return {"parameters": {"m_base": m, "log10_kb": 4.0, "c_base": c},
+                "uncertainty": {"m_base": m_se, "log10_kb": 0.01, "c_base": c_se}}
+    assert reference(e, ["c_base"], ref, free(0.0, 100.0)) == {"c_base": 200.0}
+    assert reference(e, ["c_base"], ref, free(0.0, 800.0)) == {"c_base": 1000.0}
+    assert reference(e, ["c_base"], ref) == {"c_base": 1000.0}
+    assert reference(e, ["m_base"], ref, free(0.0, 1.0, m=-10.0, m_se=1.0)) == {"m_base": 0.0}
+
+    # settle records the excluded reference; the statement says what was held and why
+    def judge(rs):
+        for r in rs:
+            r.update(accepted=True, significant=True, phi=1.0, delta_bic=-50.0, why_not="")
+        return 1.0
+    r0 = {**free(0.0, 100.0), "physics": "base_flexibility", "location": {},
+          "enrichment": e, "chi2": 10.0, "held_out": 1.0, "at_bound": False, "score": 1.0,
+          "delta_bic": -50.0}
+    r0["uncertainty"]["m_base"] = 0.1
+
+    def refit_held(r, held):
+        return {**r0, "enrichment": held,
+                "parameters": {n: r["parameters"][n] for n in held.names},
+                "uncertainty": {n: r["uncertainty"][n] for n in held.names}}
+    results = [r0]
+    settle(results, judge, refit_held, ref, log=lambda *_: None)
+    r = results[0]
+    assert r["held"] == {"c_base": 200.0} and r["held_reference"] == {"c_base": 1000.0}
+    pub = public({**r, "raw_delta_chi2": None})
+    assert pub["held_reference"] == {"c_base": 1000.0}
+    assert ("c_base held at 200 N s/m (the data do not determine it, but exclude its "
+            "reference 1000 N s/m: the nearest value they allow)") in pub["statement"]
