@@ -85,6 +85,13 @@ class BaseFlexibility:
     translation (``ref["r"]`` on an FE model: flexible supports; 1 on a shear frame's floors).
     Parameters: base mass [kg], base-to-first-floor stiffness ratio k_b/k_ref
     (log10) and base dashpot [N s/m].
+
+    Damping: with Rayleigh damping (``sys["rayleigh"]`` = (a0, a1)) the base joins the model
+    and the law covers it, C = a0 M + a1 K of the model with its base, as an FE program
+    assembles it: the a1 K part moves with the base, the a0 M part stays on the motion
+    relative to the ground, and the base has a0 m_b + a1 k_b; c_b is damping beyond the law
+    (radiation into the soil), 0 by reference. With any other damping matrix, all of C
+    moves with the base and c_b is the base's whole dashpot (reference c_ref).
     """
 
     family = "base_flexibility"
@@ -95,15 +102,19 @@ class BaseFlexibility:
     def location(self):
         return {}
 
+    @staticmethod
+    def _c(ref):
+        return 0.0 if ref.get("rayleigh") else ref["c_ref"]
+
     def spec(self, ref):
-        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), ref["c_ref"]
+        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), self._c(ref)
         return {"initial": [0.5 * m, lk + 1.0, c], "lower": [0.0, lk - 1.0, 0.0],
-                "upper": [5.0 * m, lk + 4.0, 50.0 * c], "scale": [m, 1.0, c],
-                "null": [0.0, lk + 6.0, 0.0]}
+                "upper": [5.0 * m, lk + 4.0, 50.0 * ref["c_ref"]],
+                "scale": [m, 1.0, ref["c_ref"]], "null": [0.0, lk + 6.0, 0.0]}
 
     def starts(self, ref):
         """Start points spread over the base stiffness (the fit has many local minima)."""
-        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), ref["c_ref"]
+        m, lk, c = ref["m_ref"], math.log10(ref["k_ref"]), self._c(ref)
         return [[0.5 * m, lk + d, c] for d in (-0.3, 0.0, 0.5, 1.0, 1.5)]
 
     def apply(self, sys, th, ref):
@@ -113,9 +124,13 @@ class BaseFlexibility:
             ca.DM(np.asarray(ref["r"], float)), ca.DM.ones(n - len(ref["r"])))
         kb = 10 ** th[1]
         gK, gC, gH = ca.mtimes(K, one), ca.mtimes(C, one), ca.mtimes(Kh, one)
-        return {"M": _augment(M, ca.SX.zeros(n), th[0]),
-                "K": _augment(K, -gK, ca.sum1(gK) + kb),
-                "C": _augment(C, -gC, ca.sum1(gC) + th[2]),
+        if sys.get("rayleigh") is not None:
+            cM, cK = sys["rayleigh"]
+            C = _augment(C, -cK * gK, cK * (ca.sum1(gK) + kb) + cM * th[0] + th[2])
+        else:
+            C = _augment(C, -gC, ca.sum1(gC) + th[2])
+        return {**sys, "M": _augment(M, ca.SX.zeros(n), th[0]),
+                "K": _augment(K, -gK, ca.sum1(gK) + kb), "C": C,
                 "Kh": _augment(Kh, -gH, ca.sum1(gH))}
 
 
@@ -168,7 +183,7 @@ class SecondaryOscillator:
         def attach(A, v):
             return _augment(_rank_one(A, a, v), -v * ca.DM(a), v)
 
-        return {"M": _augment(M, ca.SX.zeros(n), ms), "K": attach(K, ks), "C": attach(C, cs),
+        return {**sys, "M": _augment(M, ca.SX.zeros(n), ms), "K": attach(K, ks), "C": attach(C, cs),
                 "Kh": _augment(Kh, ca.SX.zeros(n), 0)}
 
 

@@ -16,6 +16,7 @@ from nlp.diagnosis.families import extend_parameters, references
 from nlp.diagnosis.locations import fe_references, is_fe
 from nlp.diagnosis.reduction import basis_of, uses_reduced
 from nlp.errors import SearchFailed
+from nlp.model.damping import RayleighDamping
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
 from nlp.diagnosis.evidence import quasi_covariance
@@ -147,9 +148,12 @@ def case_references(case):
     an FE model's come from its floors (nlp.diagnosis.locations.fe_references)."""
     if is_fe(case.model):
         tg = case.target
-        return fe_references(case.model, case.damping, tg.ground_r,
+        refs = fe_references(case.model, case.damping, tg.ground_r,
                              tuple(ch.dof for ch in tg.channels))
-    return references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
+    else:
+        refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
+    # a family that adds DOFs extends a Rayleigh law over them (families.BaseFlexibility)
+    return {**refs, "rayleigh": isinstance(case.damping, RayleighDamping)}
 
 
 def signed(problem, z, case, idx, sigma):

@@ -21,6 +21,7 @@ import numpy as np
 
 from nlp.frf.backends.dense import frf_symbolic
 from nlp.frf.reference import BASE_DOF
+from nlp.model.damping import RayleighDamping
 
 __all__ = ["RESIDUALS", "FrequencyFunctions", "pack_data", "data_arrays", "data_symbols", "system_sx",
            "load_vector", "frequency_functions"]
@@ -95,6 +96,8 @@ def system_sx(model, damping, params, enrichments, refs, z):
     C = ca.SX(damping.matrix(theta[sd], M, K))
     n = model.n
     system = {"M": M, "K": K, "C": C, "Kh": ca.SX.zeros(n, n)}
+    if isinstance(damping, RayleighDamping):   # a family that adds DOFs extends the law
+        system["rayleigh"] = damping.structure(theta[sd])[:2]
     ref = {**refs, "K_parts": [(1 + theta[sa][r]) * ca.DM(Kr)
                                for r, Kr in enumerate(model.K_infl)]}
     th = theta[params.physics_slice()]

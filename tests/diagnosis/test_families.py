@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from support.frames import frame_parameter_set, shear_K
-from nlp.model.damping import GeneralDamping
+from nlp.model.damping import GeneralDamping, RayleighDamping
 from nlp.model.nominal import shear_frame
 from nlp.diagnosis.families import (AddedMass, BaseFlexibility, HystereticDamping, LocalDamper,
                          ExtraMode, NonadjacentCoupling, SecondaryOscillator, SensorDelay,
@@ -25,9 +25,10 @@ def _numpy_frf(M, C, K, Kh, excitation, dof=None):
     return np.array([np.linalg.solve(K - w**2 * M + 1j * (w * C + Kh), b) for w in W]).T
 
 
-def _problem(enrichment, values, excitation="ground", outputs=("receptance",) * 3):
+def _problem(enrichment, values, excitation="ground", outputs=("receptance",) * 3,
+             damping=None):
     model = shear_frame(m, k)
-    damping = GeneralDamping(C0)
+    damping = GeneralDamping(C0) if damping is None else damping
     params = extend_parameters(frame_parameter_set(m, k, damping), [enrichment], REF, [values])
     chans = tuple(Channel(f"c{i + 1}", i, o) for i, o in enumerate(outputs))
     tg = Target(W, np.ones((3, W.size), complex), np.ones((3, W.size)), chans, excitation,
@@ -63,6 +64,32 @@ def test_base_flexibility():
     Ca[3, 3] = g.sum() + cb
     H = _numpy_frf(Ma, Ca, Ka, np.zeros((4, 4)), "ground")[:3]
     np.testing.assert_allclose(_problem(BaseFlexibility(), [mb, np.log10(kb), cb]), H, rtol=1e-9)
+
+
+def test_base_flexibility_under_rayleigh_damping_extends_the_law_over_the_base():
+    """With C = a0 M + a1 K the base joins the model and the law covers it, as an FE
+    program assembles a model with its foundation: C = a0 M_b + a1 K_b of the augmented
+    matrices, plus the base's own dashpot c_b. The mass-proportional part therefore stays
+    on the motion relative to the ground, unlike a general C, which moves with the base."""
+    a0, a1 = 0.8, 0.0015
+    mb, kb, cb = 1.5, 2e4, 3.0
+    Ma = np.diag([*m, mb])
+    Ka = np.zeros((4, 4))
+    Ka[:3, :3] = shear_K(k)
+    Ka[0, 3] = Ka[3, 0] = -k[0]
+    Ka[3, 3] = k[0] + kb
+    Ca = a0 * Ma + a1 * Ka
+    Ca[3, 3] += cb
+    H = _numpy_frf(Ma, Ca, Ka, np.zeros((4, 4)), "ground")[:3]
+    got = _problem(BaseFlexibility(), [mb, np.log10(kb), cb], damping=RayleighDamping(a0, a1))
+    np.testing.assert_allclose(got, H, rtol=1e-9)
+    # the general form (all of C through the base) is a different structure here
+    g = (a0 * np.diag(m) + a1 * shear_K(k)) @ np.ones(3)
+    Cg = np.zeros((4, 4))
+    Cg[:3, :3] = a0 * np.diag(m) + a1 * shear_K(k)
+    Cg[:3, 3] = Cg[3, :3] = -g
+    Cg[3, 3] = g.sum() + cb
+    assert np.abs(got / _numpy_frf(Ma, Cg, Ka, np.zeros((4, 4)), "ground")[:3] - 1).max() > 0.01
 
 
 def test_secondary_oscillator():

@@ -152,14 +152,15 @@ def test_without_coordinates_the_channels_are_the_locations():
 def test_flexible_supports_reroute_the_ground_springs_through_a_base():
     """A flexible base on an FE model (sparse terms) against the frame rebuilt by hand with
     its ux ground springs attached to a base DOF u_b, itself on a spring k_b and dashpot c_b
-    to the ground (the uy springs stay on the ground: the base sways in x only), stiffness-
-    proportional damping on the rebuilt structure, relative coordinates, q = Z^-1 (-M r)."""
+    to the ground (the uy springs stay on the ground: the base sways in x only), the Rayleigh
+    law C = a0 M + a1 K over the rebuilt structure with its base (as an FE program assembles
+    it) plus c_b, relative coordinates, q = Z^-1 (-M r)."""
     from nlp.diagnosis.families import BaseFlexibility
     from nlp.diagnosis.locations import located
     from nlp.diagnosis.units import place
     from types import SimpleNamespace
     model, row, r = _frame()
-    damping = RayleighDamping(0.0, 0.0005)   # a0 = 0: the rebuilt C is a1 K alone
+    damping = RayleighDamping(0.3, 0.0005)
     refs = fe_references(model, damping, r)
     np.testing.assert_array_equal(refs["r"], r)
     m_b, k_b, c_b = 900.0, 6.0e5, 1500.0
@@ -183,8 +184,8 @@ def test_flexible_supports_reroute_the_ground_springs_through_a_base():
     K = 1.15 * _springs(np.zeros((n + 1, n + 1)), row, b)   # the stiffness group at alpha = 0.15
     M = np.pad(model.M0.toarray(), (0, 1))
     M[b, b] = m_b
-    C = 0.0005 * K
     K[b, b] += k_b
+    C = 0.3 * M + 0.0005 * K
     C[b, b] += c_b
     load = -M @ np.append(r, 1.0)
     q = np.array([np.linalg.solve(K - x ** 2 * M + 1j * x * C, load) for x in w]).T

@@ -158,10 +158,12 @@ def _bordered(A, r, x):
 def _base(bld, e, th, ref, ctx):
     """A base DOF u_b under every support, along the base's direction r (``ref["r"]``: the
     rigid translation, 1 on the DOFs along it; the ground's influence vector, or 1 on a shear
-    frame's floors). The model's forces act on u - r u_b, so its K and C gain the border of
-    :func:`_bordered` (K = K0 + sum alpha_i K_i, Eqn 23; C = cM M + cK K of the damping),
-    and the base has mass m_b, a spring k_b and a dashpot c_b to the ground; a rigid ground
-    motion carries it (r_b = 1). The same physics as the dense
+    frame's floors). The model's forces act on u - r u_b, so its K gains the border of
+    :func:`_bordered` (K = K0 + sum alpha_i K_i, Eqn 23), and the base has mass m_b and a
+    spring k_b to the ground; a rigid ground motion carries it (r_b = 1). The Rayleigh law
+    C = cM M + cK K covers the model with its base: cK K gains the same border, cM M keeps
+    acting on the motion relative to the ground, and the base has cM m_b + cK k_b plus the
+    dashpot c_b beyond the law. The same physics as the dense
     :meth:`nlp.diagnosis.families.BaseFlexibility.apply`."""
     model, n = ctx["model"], bld.n
     if ctx.get("damping") is None or not proportional(ctx["damping"]):
@@ -170,21 +172,19 @@ def _base(bld, e, th, ref, ctx):
     x = bld.new_dof(1.0)
     ex = np.zeros(x + 1)
     ex[x] = 1.0
-    alpha, beta = ctx["alpha"], ctx["beta"]
+    alpha = ctx["alpha"]
     cM, cK, _, _ = ctx["damping"].structure(ctx["theta_d"])
     for kind, A, c in list(bld.items):   # a hysteretic loss so far acts on u - r u_b too
         if KINDS[kind] == "H":
             bld.add_matrix("H", _bordered(sp.csr_matrix(A)[:n, :n], r, x), c)
+    kb = 10 ** th[1]
     bld.add("M", ex, th[0])
-    bld.add("K", ex, 10 ** th[1])
-    bld.add("C", ex, th[2])
-    for kind, A0, infl, coef in (("K", model.K0, model.K_infl, alpha),
-                                 ("C", model.K0, model.K_infl, alpha),
-                                 ("C", model.M0, model.M_infl, beta)):
-        scale = 1.0 if kind == "K" else (cK if A0 is model.K0 else cM)
-        bld.add_matrix(kind, _bordered(A0, r, x), scale)
-        for i, Ai in enumerate(infl):
-            bld.add_matrix(kind, _bordered(Ai, r, x), scale * coef[i])
+    bld.add("K", ex, kb)
+    bld.add("C", ex, cM * th[0] + cK * kb + th[2])
+    for kind, scale in (("K", 1.0), ("C", cK)):
+        bld.add_matrix(kind, _bordered(model.K0, r, x), scale)
+        for i, Ai in enumerate(model.K_infl):
+            bld.add_matrix(kind, _bordered(Ai, r, x), scale * alpha[i])
 
 
 def _local_damper(bld, e, th, ref, ctx):
