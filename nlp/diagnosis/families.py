@@ -19,7 +19,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from nlp.frf.backends.terms import floor_vector
+from nlp.frf.backends.terms import floor_vector, mass_vector
 from nlp.model.parameters import Parameter
 
 __all__ = ["FAMILIES", "FrameAction", "frame_action_dK", "condensed_dK", "AddedMass", "BaseFlexibility", "SecondaryOscillator", "LocalDamper",
@@ -52,7 +52,9 @@ def _augment(A, couple, diag):
 
 @dataclass(frozen=True)
 class AddedMass:
-    """Unmodelled mass dm [kg] at a floor (equipment)."""
+    """Unmodelled mass dm [kg] at a floor (equipment): on a shear frame its row; on an FE
+    model shared by the level's nodes in every translational direction
+    (nlp.frf.backends.terms.mass_vector)."""
 
     floor: int
     family = "added_mass"
@@ -72,8 +74,8 @@ class AddedMass:
 
     def apply(self, sys, th, ref):
         M = ca.SX(sys["M"])
-        a = floor_vector(ref, self.floor, M.shape[0])
-        return {**sys, "M": M + th[0] * ca.DM(np.diag(a))}  # dm spread over the floor
+        b = mass_vector(ref, self.floor, M.shape[0])
+        return {**sys, "M": M + th[0] * ca.DM(np.diag(b))}  # dm spread over the floor's nodes
 
 
 @dataclass(frozen=True)

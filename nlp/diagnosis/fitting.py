@@ -152,7 +152,7 @@ def case_references(case):
                              tuple(ch.dof for ch in tg.channels))
     else:
         refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
-    # a family that adds DOFs extends a Rayleigh law over them (families.BaseFlexibility)
+    # a flexible base extends a Rayleigh law over its DOF (families.BaseFlexibility)
     return {**refs, "rayleigh": isinstance(case.damping, RayleighDamping)}
 
 

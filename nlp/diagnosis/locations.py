@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "floor_count", "case_floors", "story_count",
+__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "mass_vectors", "floor_count", "case_floors", "story_count",
            "floor_name", "fe_references", "located"]
 
 ELEVATION_TOL = 1e-6   # relative: nodes within this of one elevation form one level
@@ -96,6 +96,25 @@ def floor_vectors(model, fl):
     return out
 
 
+def mass_vectors(model, fl):
+    """b_f per floor (n,): weight 1/|nodes| on every translational DOF of each of the floor's
+    nodes (DOFs 1..ndm), where a mass added at the nodes acts: a mass moves with its node in
+    every direction, and a frame's vertical masses take part in its sway (the columns
+    stretch under the overturning moment). Without node coordinates, the floor's rows."""
+    ndm = len(model.node_coords[0][1]) if model.node_coords else 0
+    out = []
+    for f, a in zip(fl, floor_vectors(model, fl)):
+        nodes = set(f.nodes)
+        rows = [i for i, (nd, dof) in enumerate(model.dofs) if nd in nodes and dof <= ndm]
+        if not rows:
+            out.append(a)
+            continue
+        b = np.zeros(model.n)
+        b[rows] = 1.0 / len(nodes)
+        out.append(b)
+    return out
+
+
 def floor_count(case):
     """Floors the families are located at (1..count)."""
     return len(case_floors(case))
@@ -148,7 +167,8 @@ def fe_references(model, damping, ground_r, channel_rows=()):
             "m_ref": float(np.mean([r @ (M @ r) for r in e])),
             "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
             "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,
-            "floors": floor_vectors(model, fl)}
+            "floors": floor_vectors(model, fl),
+            "masses": mass_vectors(model, fl)}
 
 
 def located(case, e):

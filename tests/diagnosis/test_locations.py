@@ -122,6 +122,46 @@ def test_families_at_levels_on_the_sparse_backend():
     np.testing.assert_allclose(dense.channel_frfs(dense.z0, w), ref, rtol=1e-9)
 
 
+def test_an_added_mass_acts_in_every_direction_of_its_nodes():
+    """dm at a level is shared by its nodes in ux and uy, as a mass lumped at them: on a
+    frame whose ux and uy couple (inclined springs at level 2, as overturning couples a
+    frame's sway and its columns' stretch), the FRF equals numpy's with dm/2 added to both
+    DOFs of nodes 20 and 21, and differs by over 1 % from one with dm in ux alone."""
+    from dataclasses import replace
+    model, row, r = _frame()
+    K = model.K0.toarray()
+    for nd in (20, 21):   # springs at 45 degrees from the level-2 nodes to the ground
+        v = np.zeros(model.n)
+        v[[row[(nd, 1)], row[(nd, 2)]]] = math.sqrt(0.5)
+        K += 3.0e5 * np.outer(v, v)
+    model = replace(model, K0=sp.csc_matrix(K), K_infl=(sp.csc_matrix(K),))
+    damping = RayleighDamping(0.2, 0.0005)
+    refs = fe_references(model, damping, r)
+    dm = 400.0
+    ps = (Parameter("k", "stiffness", 0.0, -0.5, 1.0),
+          Parameter("a0", "damping", 1.0, 0.0, 30.0), Parameter("a1", "damping", 1.0, 0.0, 30.0))
+    params = extend_parameters(ParameterSet(ps, 1, 0), [AddedMass(2)], refs, [[dm]])
+    w = np.linspace(5.0, 80.0, 25)
+    chans = tuple(Channel(f"a{nd}", row[(nd, 1)], "absolute_accelerance") for nd in (10, 21, 31))
+    tg = Target(w, np.ones((3, w.size), complex), np.ones((3, w.size)), chans, "ground", None,
+                ground_r=r)
+
+    def numpy_frf(dirs):
+        M = model.M0.toarray()
+        C = 0.2 * M + 0.0005 * K   # the nominal model's law: the added mass brings no dashpot
+        for nd in (20, 21):
+            for d in dirs:
+                M[row[(nd, d)], row[(nd, d)]] += dm / 2
+        q = np.array([np.linalg.solve(K - x ** 2 * M + 1j * x * C, -M @ r) for x in w]).T
+        return -(w ** 2) * q[[row[(10, 1)], row[(21, 1)], row[(31, 1)]]] + 1
+    want = numpy_frf((1, 2))
+    for backend in ("sparse", "dense"):
+        pr = UpdatingProblem(model, damping, params, tg, solver=SolverConfig(compile=False),
+                             enrichments=[AddedMass(2)], refs=refs, frf_backend=backend)
+        np.testing.assert_allclose(pr.channel_frfs(pr.z0, w), want, rtol=1e-9)
+    assert np.abs(want / numpy_frf((1,)) - 1).max() > 0.01
+
+
 def test_findings_name_fe_locations_in_model_terms():
     from types import SimpleNamespace
     from nlp.diagnosis.families import HystereticDamping

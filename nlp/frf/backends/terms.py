@@ -27,6 +27,7 @@ from nlp.frf.backends.outputs import OUTPUT, Outputs
 from nlp.model.damping import RayleighDamping
 
 __all__ = ["KINDS", "STRUCTURAL", "Terms", "supported", "family_terms", "floor_vector",
+           "mass_vector",
            "terms_state", "with_terms", "backend_terms"]
 
 KINDS = ("K", "M", "C", "H")
@@ -64,6 +65,18 @@ def floor_vector(ref, floor, n):
         return a
     a[:len(floors[floor - 1])] = floors[floor - 1]
     return a
+
+
+def mass_vector(ref, floor, n):
+    """b_f (n,): the weights of an added mass dm at floor ``floor`` on the diagonal of M,
+    dm b_f: its nodes' translational DOFs on an FE model (``ref["masses"]``,
+    nlp.diagnosis.locations.mass_vectors), else the floor's own weights a_f."""
+    masses = ref.get("masses")
+    if masses is None or floor == 0:
+        return floor_vector(ref, floor, n)
+    b = np.zeros(n)
+    b[:len(masses[floor - 1])] = masses[floor - 1]
+    return b
 
 
 @dataclass(frozen=True)
@@ -122,8 +135,8 @@ class _Builder:
 
 
 def _added_mass(bld, e, th, ref, ctx):
-    a = floor_vector(ref, e.floor, bld.n)
-    bld.add_matrix("M", sp.diags(a), th[0])  # dm spread over the floor's DOFs, total dm
+    b = mass_vector(ref, e.floor, bld.n)
+    bld.add_matrix("M", sp.diags(b), th[0])  # dm spread over the floor's nodes, total dm
 
 
 def _appendage(bld, e, th, ref, ctx):
