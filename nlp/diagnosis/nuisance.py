@@ -97,7 +97,8 @@ def reference(e, names, refs, free=None):
     """{name: value}: the value each of e's parameters `names` is held at, the family's own
     start (spec(refs)["initial"]): a stated physical reference, not a fitted value. An
     appendage's damping ratio 0.02 (light structural damping), a base of half the mean floor
-    mass, a base dashpot of c_ref (the mean diagonal of the case's damping matrix).
+    mass, a base dashpot of c_ref (the mean diagonal of the case's damping matrix), or 0 under
+    a Rayleigh law, which already damps the base (families.BaseFlexibility).
 
     free : the family's free refit result, or None. A reference outside the values its data
     allow (estimate +- ALLOWED_Z standard errors) is replaced by the nearest value they allow,
