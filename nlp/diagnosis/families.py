@@ -125,11 +125,12 @@ class BaseFlexibility:
         one = ca.DM.ones(n) if ref.get("r") is None else ca.vertcat(
             ca.DM(np.asarray(ref["r"], float)), ca.DM.ones(n - len(ref["r"])))
         kb = 10 ** th[1]
-        gK, gC, gH = ca.mtimes(K, one), ca.mtimes(C, one), ca.mtimes(Kh, one)
+        gK, gH = ca.mtimes(K, one), ca.mtimes(Kh, one)
         if sys.get("rayleigh") is not None:
             cM, cK = sys["rayleigh"]
             C = _augment(C, -cK * gK, cK * (ca.sum1(gK) + kb) + cM * th[0] + th[2])
         else:
+            gC = ca.mtimes(C, one)
             C = _augment(C, -gC, ca.sum1(gC) + th[2])
         return {**sys, "M": _augment(M, ca.SX.zeros(n), th[0]),
                 "K": _augment(K, -gK, ca.sum1(gK) + kb), "C": C,

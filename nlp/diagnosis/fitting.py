@@ -16,7 +16,7 @@ from nlp.diagnosis.families import extend_parameters, references
 from nlp.diagnosis.locations import fe_references, is_fe
 from nlp.diagnosis.reduction import basis_of, uses_reduced
 from nlp.errors import SearchFailed
-from nlp.model.damping import RayleighDamping
+from nlp.frf.backends.terms import proportional
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
 from nlp.diagnosis.evidence import quasi_covariance
@@ -153,7 +153,7 @@ def case_references(case):
     else:
         refs = references(case.model, getattr(case.damping, "C0", np.eye(case.model.n)))
     # a flexible base extends a Rayleigh law over its DOF (families.BaseFlexibility)
-    return {**refs, "rayleigh": isinstance(case.damping, RayleighDamping)}
+    return {**refs, "rayleigh": proportional(case.damping)}
 
 
 def signed(problem, z, case, idx, sigma):

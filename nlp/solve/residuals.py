@@ -21,7 +21,7 @@ import numpy as np
 
 from nlp.frf.backends.dense import frf_symbolic
 from nlp.frf.reference import BASE_DOF
-from nlp.model.damping import RayleighDamping
+from nlp.frf.backends.terms import proportional
 
 __all__ = ["RESIDUALS", "FrequencyFunctions", "pack_data", "data_arrays", "data_symbols", "system_sx",
            "load_vector", "frequency_functions"]
@@ -96,7 +96,7 @@ def system_sx(model, damping, params, enrichments, refs, z):
     C = ca.SX(damping.matrix(theta[sd], M, K))
     n = model.n
     system = {"M": M, "K": K, "C": C, "Kh": ca.SX.zeros(n, n)}
-    if isinstance(damping, RayleighDamping):   # a flexible base extends the law over its DOF
+    if proportional(damping):   # a flexible base extends the law over its DOF
         system["rayleigh"] = damping.structure(theta[sd])[:2]
     ref = {**refs, "K_parts": [(1 + theta[sa][r]) * ca.DM(Kr)
                                for r, Kr in enumerate(model.K_infl)]}

@@ -37,8 +37,9 @@ STRUCTURAL = ("added_mass", "secondary_oscillator", "local_damper", "hysteretic_
 
 
 def proportional(damping):
-    """Whether C = a0 M + a1 K (Rayleigh): a flexible base then couples to C through M and K
-    alone (:func:`_base`); a rank-m or dashpot damping term has no such form here."""
+    """Whether C = a0 M + a1 K (Rayleigh): a flexible base then extends the law over its DOF,
+    coupling to C through a1 K alone (:func:`_base`); a rank-m or dashpot damping term has no
+    such form here."""
     return isinstance(damping, RayleighDamping)
 
 
