@@ -42,6 +42,10 @@ PHYSICAL = {
 }
 # derived quantities shown after a parameter: (family, prefix) -> (label, symbol, unit, ref)
 DERIVED = {("secondary_oscillator", "mu"): ("appendage mass", "m_s", "kg", "m_ref")}
+# labels that depend on the model, (family, prefix, refs key) -> label: under Rayleigh
+# damping the law already damps the base (a0 m_b + a1 k_b), so c_b is only the damping
+# beyond it (families.BaseFlexibility), and a reader must not take it for the whole dashpot
+IN_CONTEXT = {("base_flexibility", "c_base", "rayleigh"): "base dashpot beyond the Rayleigh law"}
 
 FAMILY_WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
                 "secondary_oscillator": "an appendage (secondary oscillator)",
@@ -101,7 +105,8 @@ def quantity(physics, name, value, se=None):
 def quantities(finding, refs=None):
     """Every numeric parameter of a finding (diagnosis.json form) as (name, Quantity), in
     order, each followed by its derived quantities (under the same name) when ``refs``
-    (m_ref [kg], ...) gives them."""
+    (m_ref [kg], ...) gives them; ``refs["rayleigh"]`` (the model's damping is a Rayleigh
+    law) relabels the parameters of IN_CONTEXT."""
     out = []
     unc = finding.get("uncertainty") or {}
     physics = finding.get("physics", "")
@@ -109,6 +114,9 @@ def quantities(finding, refs=None):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             continue
         q = quantity(physics, name, float(v), unc.get(name))
+        for (fam, prefix, key), label in IN_CONTEXT.items():
+            if fam == physics and name.startswith(prefix) and (refs or {}).get(key):
+                q = Quantity(label, q.symbol, q.value, q.unit, q.relative_se, q.se)
         out.append((name, q))
         d = _rule(DERIVED, physics, name)
         if d and refs and refs.get(d[3]):

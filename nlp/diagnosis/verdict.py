@@ -349,9 +349,11 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
 
 def physical_references(case):
     """The magnitudes the families' parameters are scaled by (mean floor mass [kg], story
-    stiffness [N/m], damping [N s/m]): an appendage's mass ratio times m_ref is its mass."""
+    stiffness [N/m], damping [N s/m]): an appendage's mass ratio times m_ref is its mass;
+    "rayleigh": whether the model's damping is a Rayleigh law (units.IN_CONTEXT)."""
     refs = case_references(case)
-    return {"m_ref": refs["m_ref"], "k_ref": refs["k_ref"], "c_ref": refs["c_ref"]}
+    return {"m_ref": refs["m_ref"], "k_ref": refs["k_ref"], "c_ref": refs["c_ref"],
+            "rayleigh": bool(refs.get("rayleigh"))}
 
 
 def log_conclusion(log, result, refs=None):
