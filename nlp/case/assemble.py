@@ -142,7 +142,8 @@ def _one_test(cfg, channels=None, data_file=None):
         # few modes: kept as they were, since the diagnosis's decisions were measured on
         # that selection (a mode not found among few is one the data barely show)
         model_hz = None
-    idx = select_points(cfg, f, H, channels, ex.type, coherence, noise.detect, model_hz)
+    idx = select_points(cfg, f, H, channels, ex.type, coherence, noise.detect, model_hz,
+                        source=data_file)
     # damping after the selection: modal-basis damping takes the band's modes
     damping = case_damping(cfg, model, float(f[idx].max()))
     params = case_parameters(cfg, model, damping)

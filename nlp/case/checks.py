@@ -132,9 +132,10 @@ def check_record_alive(records_file, column, x, case_key):
                          f"constant {float(x[0]) if x.size else 'empty'}")
 
 
-def check_coherence(cfg, f, coherence, names, keys, n_averages):
+def check_coherence(cfg, f, coherence, names, keys, n_averages, source=None):
     """Each output must be coherent with the input somewhere in the band (H1 estimates
-    from several averages only: with one average the coherence is 1 by construction)."""
+    from several averages only: with one average the coherence is 1 by construction);
+    source: the records file named in the error (default: the case's data.file)."""
     if coherence is None or n_averages < 16:
         return
     # the loader validated fmin < fmax already: band_mask cannot refuse them here
@@ -142,7 +143,7 @@ def check_coherence(cfg, f, coherence, names, keys, n_averages):
     for c, (name, key) in enumerate(zip(names, keys)):
         top = float(np.max(coherence[c, band])) if band.any() else 0.0
         if top < MIN_COHERENCE:
-            raise InputError(cfg.data.file, name, f"a response coherent with the input somewhere "
+            raise InputError(source or cfg.data.file, name, f"a response coherent with the input somewhere "
                              f"(coherence >= {MIN_COHERENCE} at some frequency; {key} in "
                              f"{cfg.path})", f"largest coherence {top:.3f}")
 

@@ -71,7 +71,8 @@ def _read_records(cfg, paths):
         raise InputError(cfg.path, "data.nperseg" if exc.key == "nperseg" else "data.overlap",
                          f"{exc.expected} (the records have {n} samples)", exc.got) from None
     check_coherence(cfg, est.f, est.coherence, [c.column for c in d.channels],
-                    [f"data.channels[{i}]" for i in range(len(d.channels))], est.n_averages)
+                    [f"data.channels[{i}]" for i in range(len(d.channels))], est.n_averages,
+                    source=", ".join(map(str, paths)))
     return est, first, reports
 
 

@@ -28,11 +28,13 @@ def detection_form(f, H, channels, excitation):
     return out
 
 
-def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None, model_hz=None):
+def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None, model_hz=None,
+                  source=None):
     """Indices into f of the points the objective uses, by frequencies.method; sigma: std
     of ln|H| (n_ch, n_f) for the half-power method; model_hz: the nominal model's natural
     frequencies [Hz] (half-power: where fewer peaks are found, the unfound modes' points
-    are kept, :func:`nlp.frf.freqsel.unresolved_points`)."""
+    are kept, :func:`nlp.frf.freqsel.unresolved_points`); source: the data file H came
+    from, named in an error (default: the case's data.file)."""
     fc = cfg.frequencies
     if fc.method == "all":
         mask = np.ones(f.size, bool)
@@ -49,7 +51,7 @@ def select_points(cfg, f, H, channels, excitation, coherence=None, sigma=None, m
         try:
             idx = half_power_points(cfg, f, H, channels, excitation, coherence, sigma, model_hz)
         except InputError as exc:  # freqsel names its argument; say which case key it is
-            raise _frequency_error(cfg, f, exc) from None
+            raise _frequency_error(cfg, f, exc, source or cfg.data.file) from None
     return _nonempty(cfg, f, idx)
 
 
@@ -57,13 +59,13 @@ _FREQ_KEYS = {"k", "bands", "points", "fmin", "fmax", "n_peaks", "min_points_per
               "min_coherence"}
 
 
-def _frequency_error(cfg, f, exc):
-    """A freqsel error named by a key that exists in the case file."""
+def _frequency_error(cfg, f, exc, source):
+    """A freqsel error named by a key that exists in the case file; source: the data file."""
     if exc.key in _FREQ_KEYS:
         return InputError(cfg.path, f"frequencies.{exc.key}", exc.expected, exc.got)
     if exc.key == "prominence_db":  # no resonance peak: the data, not a setting, is the cause
         return InputError(cfg.path, "frequencies.method", "a method the data allow: half_power "
-                          f"needs a resonance peak, and {cfg.data.file} shows none in "
+                          f"needs a resonance peak, and {source} shows none in "
                           f"{f[0]:g}-{f[-1]:g} Hz (check its record length and input, or use "
                           "bands or all)", cfg.frequencies.method)
     return InputError(cfg.path, "frequencies.method", f"{exc.expected} (from {exc.key})", exc.got)

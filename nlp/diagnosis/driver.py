@@ -325,7 +325,7 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
                            "held": base.held, "problem": points.base})
     if level_bound:
         return sel, base
-    others = setup_others(cfg, case.discrepancy)
+    others = setup_others(cfg, case.discrepancy, log)
     sel.reciprocity = reciprocity_of_tests(cfg, case.f[points.fit]) if cfg.data.tests else \
         reciprocal_pairs(case, others, points.fit)
     for pr in sel.reciprocity:

@@ -7,6 +7,7 @@ story is placed by a shared fit of both levels that frees one story at a time.
 
 from dataclasses import replace
 import math
+import os
 
 import numpy as np
 from scipy.linalg import null_space
@@ -15,20 +16,21 @@ from nlp.case.assemble import assemble
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, normalised, quasi_se, scatter_best)
 from nlp.diagnosis.harmonics import harmonic_location, story_vectors
+from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import modal_parameters
 from nlp.solve.search import SearchConfig
 
 LEVEL_STARTS = 6   # scatter-search starts of each level's equivalent linear fit
 
 
-def level_fit(cfg, path, z_start=None):
+def level_fit(cfg, path, z_start=None, case=None):
     """Baseline fit to one test level: story stiffnesses with standard errors, modes.
 
     Several starts (a short scatter search, plus z_start: another level's
     optimum), so that the equivalent model of a level is not a local minimum
-    or stuck on a bound.
+    or stuck on a bound. case: the level's case, when already assembled.
     """
-    c = assemble(cfg, data_file=path)
+    c = case if case is not None else assemble(cfg, data_file=path)
     sig = noise_sigma(c, c.selected)
     tg = fit_target(c, c.selected, sig)
     pr = diagnosis_problem(c, tg)
@@ -325,7 +327,22 @@ def nonlinearity(cfg, log):
     if not cfg.data.level_files:
         return None
     ref = level_fit(cfg, cfg.data.file)
-    fits = [ref] + [level_fit(cfg, p, ref["z"]) for p in cfg.data.level_files]
+    fits, not_compared = [ref], []
+    for p in cfg.data.level_files:
+        c, why = assemble_other(cfg, p, log)
+        if c is None:   # its data allow no fit: the other levels are still compared
+            not_compared.append({"file": os.path.basename(str(p)), "reason": why})
+        else:
+            fits.append(level_fit(cfg, p, ref["z"], c))
+    if len(fits) == 1:
+        return {"found": None, "max_z": None, "not_compared": not_compared}
+    out = _compare_levels(cfg, ref, fits, log)
+    out["not_compared"] = not_compared
+    return out
+
+
+def _compare_levels(cfg, ref, fits, log):
+    """:func:`nonlinearity` once the levels are fitted (fits[0] is the reference)."""
     i, zsc, lv, scores, lr = _most_different_level(ref, fits[1:])
     harm = _harmonics(cfg, fits)
     by_harmonics = bool(harm and harm["best"] is not None)

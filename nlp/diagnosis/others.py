@@ -10,6 +10,7 @@ import os
 
 from nlp.case.assemble import assemble
 from nlp.case.schema import ExcitationConfig
+from nlp.errors import InputError
 from nlp.diagnosis.candidates import candidates, same, score, to_refit
 from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms, evidence,
                                     scaled_delta_bic, significance)
@@ -31,12 +32,34 @@ def other_tests(cfg):
     return out
 
 
-def setup_others(cfg, discrepancy=()):
+def assemble_other(c_cfg, path, log=print):
+    """(case, None) of another test of the structure, or (None, the reason) when its data
+    allow no fit: they fail a check of their own (a response not coherent with the input,
+    no resonance above their noise for the frequency selection). Such a test can neither
+    confirm nor refute a finding, and must not stop the diagnosis of the case's own data,
+    which passed the same checks; the reason is logged. An error in the case file itself
+    is raised."""
+    try:
+        return assemble(c_cfg, data_file=path), None
+    except InputError as exc:
+        if exc.file != str(path) and not exc.key.startswith("frequencies"):
+            raise
+        why = f"'{exc.key}' expected {exc.expected}" + \
+            (f", got {exc.got!r}" if exc.got is not None else "")
+        log(f"  other test {os.path.basename(str(path))} not used: {why}")
+        return None, why
+
+
+def setup_others(cfg, discrepancy=(), log=print):
     """Each other test of the structure, assembled once: case, fitted points, target; the
-    model discrepancy of this test (its modes belong to the structure) is kept there."""
+    model discrepancy of this test (its modes belong to the structure) is kept there.
+    Tests whose data allow no fit are left out (:func:`assemble_other`)."""
     out = []
     for label, c_cfg, path in other_tests(cfg):
-        c2 = replace(assemble(c_cfg, data_file=path), discrepancy=tuple(discrepancy))
+        c2, _ = assemble_other(c_cfg, path, log)
+        if c2 is None:
+            continue
+        c2 = replace(c2, discrepancy=tuple(discrepancy))
         idx = fit_windows(c_cfg, c2, 1)
         out.append({"label": label, "case": c2, "target": fit_target(c2, idx, noise_sigma(c2, idx)),
                     "at": {}, "idx": idx})

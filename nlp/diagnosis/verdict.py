@@ -284,7 +284,8 @@ def _optional_parts(result, screening, checks, nonlin, nonlin_found):
         # written whether or not a nonlinearity was named, so a miss can be read from the file
         result["level_comparison"] = {"found": nonlin_found, "max_z": nonlin["max_z"],
                                       "shared_stiffness": nonlin.get("shared_stiffness"),
-                                      "harmonics": nonlin.get("harmonics")}
+                                      "harmonics": nonlin.get("harmonics"),
+                                      "not_compared": nonlin.get("not_compared", [])}
 
 
 def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, screening, log):
