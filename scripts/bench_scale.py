@@ -27,7 +27,8 @@ logs over the frames run).
 Run:  python scripts/bench_scale.py [--sizes 16 32 64 256] [--starts 4] [--workers 2]
       [--frequencies default|all] [--case cases/frame3d_2100/case.yaml ...]
       [--eval-only 1024]   (sizes whose whole run is not attempted: build and one evaluation)
-      [--lm none|prefit|all]   (Levenberg-Marquardt prefits or local solves, nlp/solve/lm.py)
+      [--lm auto|none|prefit|all]   (Levenberg-Marquardt prefits or local solves,
+      nlp/solve/lm.py; auto: the package's default, LM above LM_FROM free variables)
 """
 
 import argparse
@@ -160,12 +161,14 @@ def main():
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--frequencies", choices=("default", "all"), default="default")
     ap.add_argument("--case", nargs="*", default=[])
-    ap.add_argument("--lm", choices=("none", "prefit", "all"), default="none",
-                    help="Levenberg-Marquardt (nlp/solve/lm.py) for the prefits or every local solve")
+    ap.add_argument("--lm", choices=("auto", "none", "prefit", "all"), default="auto",
+                    help="Levenberg-Marquardt (nlp/solve/lm.py) for the prefits or every local "
+                         "solve (auto: the package's default, above LM_FROM free variables)")
     ap.add_argument("--keep", default=None, help="folder for the cases and results (default: temporary)")
     args = ap.parse_args()
-    UpdatingProblem.lm_prefit = args.lm in ("prefit", "all")  # forked workers inherit it
-    UpdatingProblem.lm_local = args.lm == "all"
+    if args.lm != "auto":  # forked workers inherit it
+        UpdatingProblem.lm_prefit = args.lm in ("prefit", "all")
+        UpdatingProblem.lm_local = args.lm == "all"
     rates = machine_rates()
     print(f"machine: {rates[0] / 1e9:.1f} GFlop/s (one-thread matrix product), "
           f"{rates[1] / 1e9:.1f} GB/s (array copy); {args.starts} starts, {args.workers} workers, "

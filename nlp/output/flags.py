@@ -19,6 +19,10 @@ the top of report.html.
   :mod:`nlp.frf.noise`): either the search ended in a local minimum or the
   model lacks physics the data show. Parameters and standard errors of such a
   fit describe the best compromise, not the structure.
+* ``undetermined``: some combinations of the relative parameters have a standard
+  error above 100 %: a whole change along them moves the chi-square by less than 1,
+  so the data cannot tell them from zero or from twice their value, and the values
+  along them are the start's, not the data's (many per-storey parameters, few sensors).
 * ``negative_correlation``: a replayed time history anti-correlates with its
   record, the signature of a sign or unit error (an inverted sensor, a force
   taken with the wrong sign, a displacement given as acceleration).
@@ -28,8 +32,8 @@ import numpy as np
 
 from nlp.solve.stopping import LIMIT_STATUSES
 
-__all__ = ["AT_BOUND", "MISFIT_RATIO", "bound_flag", "iteration_flag", "single_start_flag",
-           "misfit_flag", "replay_flags"]
+__all__ = ["AT_BOUND", "MISFIT_RATIO", "UNDETERMINED_SE", "bound_flag", "iteration_flag",
+           "single_start_flag", "misfit_flag", "undetermined_flag", "replay_flags"]
 
 AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, that counts as "on"
 # RMS of ln|H_a / H_x| over the noise's RMS above which the fit is flagged (a reduced
@@ -38,6 +42,11 @@ AT_BOUND = 1e-3   # distance to a bound, as a fraction of the bound interval, th
 # (nlp.frf.noise) came out 1.00x the true noise on the four-storey case and 1.05-1.25x on
 # the tall frames of scripts/bench_scale.py, so a fit at its noise floor stays below 1.3.
 MISFIT_RATIO = 1.5
+# Standard error, in relative-change units, of a unit combination of the relative
+# parameters above which it is not determined: 1 is a 100 % change, which moves the
+# chi-square by (1 / SE)^2 < 1 along it (the Gauss-Newton covariance is s^2 (J^T J)^-1,
+# so SE > 1 is an eigenvalue of J^T J below s^2: nlp.solve.lm's undetermined directions)
+UNDETERMINED_SE = 1.0
 
 
 def bound_flag(name, value, lower, upper, unit, se_key):
@@ -131,6 +140,38 @@ def misfit_flag(rms_misfit, rms_noise, n_points):
                        "standard errors do not hold",
             "advice": "run more starts (--starts) and compare their objectives; if they agree, "
                       "the model lacks physics the data show: run 'frf-nlp diagnose'"}
+
+
+def undetermined_flag(cov, names, values):
+    """Flag the combinations of relative parameters that the data do not determine, or None.
+
+    cov : (n, n) covariance of the free relative parameters (theta: 1 is a 100 % change);
+    names : their names; values : their relative changes theta at the optimum (a
+    parameter's value is nominal x (1 + theta), so its relative standard error is
+    SE(theta) / (1 + theta)).
+    """
+    cov = np.asarray(cov, float)
+    if cov.size == 0:
+        return None
+    lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    weak = lam > UNDETERMINED_SE ** 2
+    if not weak.any():
+        return None
+    se = np.sqrt(np.clip(np.diag(cov), 0, None)) / np.maximum(1 + np.asarray(values, float), 1e-12)
+    loose = [n for n, x in zip(names, se) if x > UNDETERMINED_SE]
+    # the parameters that make up the undetermined combinations, largest share first
+    share = np.sum(V[:, weak] ** 2, axis=1)
+    top = [names[i] for i in np.argsort(-share)[:6] if share[i] > 0.05]
+    return {"kind": "undetermined", "subject": "parameters", "combinations": int(weak.sum()),
+            "parameters_above_100_percent": loose,
+            "message": f"{int(weak.sum())} of {len(names)} combinations of the parameters are not "
+                       "determined by these data (standard error above 100 %: a whole change "
+                       "along them moves the misfit by less than its noise), mostly "
+                       f"{', '.join(top)}; {len(loose)} parameter(s) have a standard error above "
+                       "their own value. Their values are the starting model's, not the data's",
+            "advice": "fit fewer parameters (tie storeys or elements in groups: "
+                      "parameters.ties), fix the ones known from drawings, or add data that "
+                      "separate them (sensors on the floors in between, another input point)"}
 
 
 def replay_flags(time_domain):

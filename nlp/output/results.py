@@ -9,7 +9,8 @@ import tempfile
 import numpy as np
 import scipy.sparse as sp
 
-from nlp.output.flags import bound_flag, iteration_flag, misfit_flag, single_start_flag
+from nlp.output.flags import (bound_flag, iteration_flag, misfit_flag, single_start_flag,
+                              undetermined_flag)
 from nlp.frf.noise import sigma_ln
 from nlp.frf.reference import channel_frfs, modal_parameters
 from nlp.solve.identify import jacobian_report, standard_errors
@@ -196,6 +197,16 @@ def summarize(case, problem, search):
     if limit:
         flags.append(limit)
     flags += _fit_flags(case, search, Ha)
+    rel, ties = [], set()
+    for i, p in enumerate(params.params):  # relative parameters, one per tied group
+        if p.nominal is not None and not p.fixed and se_theta[i] > 0 and p.tie not in ties:
+            rel.append(i)
+            if p.tie:
+                ties.add(p.tie)
+    weak = undetermined_flag(cov_theta[np.ix_(rel, rel)], [params.params[i].name for i in rel],
+                             theta[rel])
+    if weak:
+        flags.append(weak)
     return {
         "case": cfg.name, "case_file": cfg.path,
         "flags": flags,

@@ -37,7 +37,8 @@ import scipy.linalg as sla
 from nlp.solve.identify import tangent_basis
 from nlp.solve.stopping import free_variables
 
-__all__ = ["LM_STATIONARY", "PREFIT_HANDOVER", "LMResult", "determined_directions", "levenberg_marquardt"]
+__all__ = ["LM_STATIONARY", "PREFIT_HANDOVER", "LM_FROM", "LMResult", "determined_directions",
+           "levenberg_marquardt", "lm_chosen"]
 
 # Stop when the Gauss-Newton step on the determined directions would lower 2 f by less
 # than this many residual variances s^2: the step is below 0.1 standard error
@@ -45,6 +46,11 @@ LM_STATIONARY = 1e-2
 # A prefit hands over to the case's residual when its step would lower 2 f by less than
 # this many s^2 (a step below 10 standard errors: near the minimum, in its basin)
 PREFIT_HANDOVER = 100.0
+# Free variables above which the numeric backends' solves are LM by default (IPOPT below):
+# between the largest tall frame IPOPT finished (129 parameters: 4 starts in 25 s) and the
+# smallest it did not (257: still running after 4 minutes; 513: line search stalled at
+# twice the noise floor), docs/method/updating.md
+LM_FROM = 200
 # Initial damping relative to diag(J^T J). From the nominal model of a 64-storey frame
 # (129 parameters, complex prefit) 1e-3 took a near Gauss-Newton first step into another
 # minimum (top storeys 11-24 % off, f 2 % above the truth's); 0.1, 1 and 10 all reached the
@@ -65,6 +71,15 @@ class LMResult:
     iterations: int
     evaluations: int
     determined: int = 0
+
+
+def lm_chosen(setting, n_z):
+    """Solve by LM? setting: True, False, or None (the default: above LM_FROM free
+    variables). Below it IPOPT is faster: on tall frames of 32-64 storeys LM prefits from
+    far search starts handed over at local minima of the complex residual, where IPOPT then
+    crept on ln|H| for 500 iterations (whole run 284 s against 25 s at 64 storeys); above
+    it IPOPT's undamped steps along the nearly null directions of J^T J stall."""
+    return n_z > LM_FROM if setting is None else bool(setting)
 
 
 def free_eigen(z, g, A, lo, hi, G):

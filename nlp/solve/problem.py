@@ -37,7 +37,7 @@ from nlp.frf.backends.system import LinearSystem
 from nlp.frf.backends.terms import backend_terms, with_terms
 from nlp.solve.callbacks import build_callback_nlp
 from nlp.solve.compiled import build_compiled_nlp
-from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt
+from nlp.solve.lm import LM_STATIONARY, PREFIT_HANDOVER, levenberg_marquardt, lm_chosen
 from nlp.solve.polish import MAX_PARAMETERS, newton_polish
 from nlp.solve.prefit import PREFIT_FAR, PREFIT_MAX_ITER, PREFITS, prefit_residual
 from nlp.solve.residuals import RESIDUALS, data_arrays, frequency_functions, pack_data
@@ -337,12 +337,10 @@ class UpdatingProblem:
         """Does :meth:`solve` offer a screening tolerance (IPOPT, tol not set by the case)?"""
         return self._screen_def is not None
 
-    # Levenberg-Marquardt (nlp.solve.lm) on the numeric backends, off by default: on tall
-    # frames of 32-64 storeys its prefits from far search starts handed over at local minima
-    # of the complex residual, and IPOPT then crept on ln|H| for 500 iterations (whole run
-    # 284 s against 25 s at 64 storeys); IPOPT's prefits from there stop at their cap
-    lm_prefit = False  # True: prefits by LM, handed over near their minimum
-    lm_local = False   # True: every local solve by LM
+    # Levenberg-Marquardt (nlp.solve.lm) on the numeric backends; None: the default,
+    # above lm.LM_FROM free variables only (why: lm.lm_chosen)
+    lm_prefit = None  # True: prefits by LM, handed over near their minimum
+    lm_local = None   # True: every local solve by LM
     # Newton polish where IPOPT ends unconverged; off for refits capped on purpose
     polish_unconverged = True
     early_polish = False   # True (diagnosis fits, f half a chi-square): stop at POLISH_AT to polish
@@ -398,7 +396,8 @@ class UpdatingProblem:
         backends with IPOPT chosen: IPOPT's undamped Gauss-Newton steps along the nearly
         null directions of J^T J of many-parameter fits (the top storeys of a tall frame:
         eigenvalue 2e-11 against 1e5) ran to steps of 0.004 and to its iteration limit."""
-        return self.backend != "dense" and self.solver_config.name == "ipopt" and self.lm_local
+        return self.backend != "dense" and self.solver_config.name == "ipopt" and \
+            lm_chosen(self.lm_local, self.params.n_z)
 
     def _local(self, z_start, lo, hi, screen, early=False):
         """(z, f, success, status, iterations) from z_start; early: may stop at POLISH_AT."""
@@ -427,7 +426,7 @@ class UpdatingProblem:
         if self.prefit is None:
             return None
         try:
-            if self.lm_prefit and self.prefit.backend != "dense":
+            if lm_chosen(self.lm_prefit, self.params.n_z) and self.prefit.backend != "dense":
                 pre = self.prefit.solve_lm(z0, bounds=bounds, tol=PREFIT_HANDOVER, handover=True)
             else:
                 pre = self.prefit.solve(z0, screen=True, bounds=bounds)

@@ -20,3 +20,33 @@ def test_misfit_flag_at_the_ratio():
     fl = misfit_flag((MISFIT_RATIO + 0.1) * sigma, sigma, e.size)
     assert fl["kind"] == "misfit_above_noise" and np.isclose(fl["ratio"], MISFIT_RATIO + 0.1)
     assert misfit_flag(np.nan, sigma, 10) is None and misfit_flag(1.0, 0.0, 10) is None
+
+
+def test_undetermined_flag_counts_the_directions_the_data_leave_open():
+    """A linear least-squares fit of relative parameters with known singular values: the
+    standard error along right singular vector k is s / sigma_k (the covariance is
+    s^2 (J^T J)^-1), so exactly the directions with sigma_k < s are undetermined."""
+    from nlp.output.flags import undetermined_flag
+    from nlp.solve.identify import standard_errors
+    rng = np.random.default_rng(3)
+    m, n, s = 400, 6, 0.05
+    U, _ = np.linalg.qr(rng.standard_normal((m, n)))
+    V, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    sv = np.array([5.0, 2.0, 1.0, 0.3, 0.04, 0.01])        # s / sv > 1 for the last two
+    J = U @ np.diag(sv) @ V.T
+    r = rng.standard_normal(m)
+    r *= s * np.sqrt(m - n) / np.linalg.norm(r)            # s^2 = r^T r / (m - n)
+    cov, s2, _ = standard_errors(J, r, m)
+    assert np.isclose(s2, s ** 2)
+    names = [f"k{i + 1}" for i in range(n)]
+    fl = undetermined_flag(cov, names, np.zeros(n))
+    assert fl["kind"] == "undetermined"
+    assert fl["combinations"] == int(np.sum(s / sv > 1.0)) == 2
+    se = np.sqrt(np.diag(cov))
+    assert fl["parameters_above_100_percent"] == [nm for nm, x in zip(names, se) if x > 1]
+    # the same data with every direction determined: no flag
+    J2 = U @ np.diag(np.maximum(sv, 0.2)) @ V.T
+    assert undetermined_flag(standard_errors(J2, r, m)[0], names, np.zeros(n)) is None
+    # a relative standard error is that of the value nominal x (1 + theta)
+    one = undetermined_flag(np.diag([1.21, 0.01]), ["a", "b"], np.array([0.5, 0.0]))
+    assert one["combinations"] == 1 and one["parameters_above_100_percent"] == []

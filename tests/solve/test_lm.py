@@ -151,3 +151,24 @@ def test_lm_prefit_and_local_solves_reach_the_noise_floor_of_a_tall_frame(tmp_pa
     k = np.array([p.nominal * (1 + t) for p, t in zip(case.params.params, problem.theta(res.z))
                   if p.group == "stiffness"])
     assert np.max(np.abs(k / fr.k - 1)) < 0.01
+
+
+def test_lm_is_the_default_above_lm_from_free_variables_on_the_numeric_backends(tmp_path,
+                                                                                 monkeypatch):
+    """The package's default (None): LM local solves and prefits once the free variables
+    exceed LM_FROM, IPOPT below; an explicit setting wins either way."""
+    import nlp.solve.lm as L
+    fr = tall_frame(16, seed=0, points_per_storey=12)
+    np.savez_compressed(tmp_path / "frf.npz", f=fr.f, H=fr.H)
+    (tmp_path / "case.yaml").write_text(yaml.safe_dump(case_dict(fr), sort_keys=False))
+    problem = build_problem(assemble(load_case(str(tmp_path / "case.yaml"))))
+    assert problem.backend != "dense" and problem.lm_local is None
+    n_z = problem.params.n_z                      # 33
+    monkeypatch.setattr(L, "LM_FROM", n_z)
+    assert not problem.uses_lm
+    monkeypatch.setattr(L, "LM_FROM", n_z - 1)
+    assert problem.uses_lm
+    res = problem.solve()
+    assert res.status.startswith("Stationary (Levenberg") and res.prefit_iterations > 0
+    monkeypatch.setattr(problem, "lm_local", False)
+    assert not problem.uses_lm
