@@ -197,9 +197,13 @@ def summarize(case, problem, search):
     if limit:
         flags.append(limit)
     flags += _fit_flags(case, search, Ha)
+    # free relative parameters, one per tied group; one on a bound has its own flag, and
+    # its Gauss-Newton error does not hold
+    at_bound = {f["subject"] for f in flags if f["kind"] == "at_bound"}
     rel, ties = [], set()
-    for i, p in enumerate(params.params):  # relative parameters, one per tied group
-        if p.nominal is not None and not p.fixed and se_theta[i] > 0 and p.tie not in ties:
+    for i, p in enumerate(params.params):
+        if p.nominal is not None and not p.fixed and se_theta[i] > 0 and p.tie not in ties \
+                and p.name not in at_bound:
             rel.append(i)
             if p.tie:
                 ties.add(p.tie)
