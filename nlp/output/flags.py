@@ -166,12 +166,14 @@ def undetermined_flag(cov, names, values):
             "parameters_above_100_percent": loose,
             "message": f"{int(weak.sum())} of {len(names)} combinations of the parameters are not "
                        "determined by these data (standard error above 100 %: a whole change "
-                       "along them moves the misfit by less than its noise), mostly "
-                       f"{', '.join(top)}; {len(loose)} parameter(s) have a standard error above "
-                       "their own value. Their values are the starting model's, not the data's",
-            "advice": "fit fewer parameters (tie storeys or elements in groups: "
-                      "parameters.ties), fix the ones known from drawings, or add data that "
-                      "separate them (sensors on the floors in between, another input point)"}
+                       "along them moves the misfit by less than its noise)"
+                       + (f", mostly {', '.join(top)}" if top else "")
+                       + f"; {len(loose)} parameter(s) have a standard error above their own "
+                       "value. Along those combinations the values are set by the start and "
+                       "the solver, not by the data",
+            "advice": "fit fewer parameters (tie storeys or elements in groups: parameters.tie), "
+                      "fix the ones known from drawings, or add data that separate them "
+                      "(sensors on the floors in between, another input point)"}
 
 
 def replay_flags(time_domain):
