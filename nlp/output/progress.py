@@ -100,6 +100,10 @@ class _Bar(_Quiet):
         return write
 
     def close(self):
+        # the final n/N is drawn even when the last updates came within mininterval of the
+        # previous drawing (results of parallel workers arrive together), so a stage's bar
+        # always ends at its count
+        self._bar.refresh()
         self._bar.close()
 
 

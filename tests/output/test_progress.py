@@ -144,3 +144,17 @@ def test_reporters_draw_on_a_terminal_and_do_nothing_elsewhere(monkeypatch):
     assert "diagnose: baseline, round 1" in text and "3/3 [" in text
     assert re.search(r"3/3 \[\d\d:\d\d elapsed\]", text)   # steps: no remaining time
     assert lines == ["a log line"]
+
+
+def test_a_closed_bar_shows_its_final_count_after_updates_within_mininterval(monkeypatch):
+    """Updates that arrive together (parallel workers' results) fall within tqdm's mininterval
+    of the last drawing; closing the bar still draws n/N."""
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    outer = progress._Bar("diagnose", 9, "step", 0)   # a nested bar is cleared when closed
+    bar = progress._Bar("candidate refits", 6, "refit", 0)
+    for _ in range(6):
+        bar.update()          # all within 0.2 s: only the first is drawn by tqdm itself
+    bar.close()
+    outer.close()
+    assert "6/6" in err.getvalue()
