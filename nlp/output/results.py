@@ -171,6 +171,19 @@ def _search_section(cfg, search):
                        for i, r in zip(search.indices, search.results)]}
 
 
+def _open_relative(params, se_theta, at_bound):
+    """Indices of the free relative parameters the undetermined flag judges: one per tied
+    group, none on a bound (its own flag says so, and its Gauss-Newton error does not hold)."""
+    rel, ties = [], set()
+    for i, p in enumerate(params.params):
+        if p.nominal is not None and not p.fixed and se_theta[i] > 0 and p.tie not in ties \
+                and p.name not in at_bound:
+            rel.append(i)
+            if p.tie:
+                ties.add(p.tie)
+    return rel
+
+
 def summarize(case, problem, search):
     """The content of result.json for a finished (or interrupted) search."""
     params = case.params
@@ -197,16 +210,7 @@ def summarize(case, problem, search):
     if limit:
         flags.append(limit)
     flags += _fit_flags(case, search, Ha)
-    # free relative parameters, one per tied group; one on a bound has its own flag, and
-    # its Gauss-Newton error does not hold
-    at_bound = {f["subject"] for f in flags if f["kind"] == "at_bound"}
-    rel, ties = [], set()
-    for i, p in enumerate(params.params):
-        if p.nominal is not None and not p.fixed and se_theta[i] > 0 and p.tie not in ties \
-                and p.name not in at_bound:
-            rel.append(i)
-            if p.tie:
-                ties.add(p.tie)
+    rel = _open_relative(params, se_theta, {f["subject"] for f in flags if f["kind"] == "at_bound"})
     weak = undetermined_flag(cov_theta[np.ix_(rel, rel)], [params.params[i].name for i in rel],
                              theta[rel])
     if weak:
