@@ -12,7 +12,7 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, Hys
                                     LocalDamper,
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
-from nlp.diagnosis.locations import floor_count, is_fe, story_count
+from nlp.diagnosis.locations import case_floors, floor_count, is_fe, mass_floors, story_count
 from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
 from nlp.frf.backends.terms import proportional
 from nlp.solve.identify import tangent_basis
@@ -30,7 +30,8 @@ def candidates(case):
     stories (an FE model's stiffness groups); frame action is a shear-frame family."""
     n = floor_count(case)
     fe = is_fe(case.model)
-    out = [AddedMass(i) for i in range(1, n + 1)]
+    out = [AddedMass(i) for i in (mass_floors(case.model, case_floors(case)) if fe
+                                  else range(1, n + 1))]
     if base_candidate(case):
         out.append(BaseFlexibility())
     out += [LocalDamper(i, i - 1) for i in range(1, n + 1)]

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "mass_vectors", "floor_count", "case_floors", "story_count",
-           "floor_name", "fe_references", "located"]
+__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "mass_vectors", "translations",
+           "mass_floors", "floor_count", "case_floors", "story_count", "floor_name",
+           "fe_references", "located"]
 
 ELEVATION_TOL = 1e-6   # relative: nodes within this of one elevation form one level
 
@@ -100,8 +101,9 @@ def mass_vectors(model, fl):
     """b_f per floor (n,): weight 1/|nodes| on every translational DOF of each of the floor's
     nodes (DOFs 1..ndm), where a mass added at the nodes acts: a mass moves with its node in
     every direction, and a frame's vertical masses take part in its sway (the columns
-    stretch under the overturning moment). Without node coordinates, the floor's rows."""
-    ndm = len(model.node_coords[0][1]) if model.node_coords else 0
+    stretch under the overturning moment). Without node coordinates the translations are read
+    from the DOF numbering (:func:`translations`)."""
+    ndm = len(model.node_coords[0][1]) if model.node_coords else translations(model)
     out = []
     for f, a in zip(fl, floor_vectors(model, fl)):
         nodes = set(f.nodes)
@@ -112,6 +114,30 @@ def mass_vectors(model, fl):
         b = np.zeros(model.n)
         b[rows] = 1.0 / len(nodes)
         out.append(b)
+    return out
+
+
+def translations(model):
+    """How many of a node's DOFs (1..) are translations, from the model's DOF map when it has
+    no coordinates: ``model.ndm`` when the case states it, else by OpenSees' numbering, where
+    six DOFs per node are a 3-D frame's (ux, uy, uz first) and three a 2-D frame's (ux, uy,
+    rz); a map of one or two DOFs per node is all translation."""
+    ndf = max((d for _, d in model.dofs), default=0)
+    if model.ndm:
+        return min(model.ndm, ndf)
+    return 3 if ndf >= 6 else 2 if ndf == 3 else ndf
+
+
+def mass_floors(model, fl):
+    """The floors (1-based) where an added mass is a distinct candidate: on a model without
+    coordinates two channels of one node are two locations of an appendage or a damper, but
+    a mass at the node is one and the same (it moves with the node in every direction)."""
+    seen, out = set(), []
+    for i, b in enumerate(mass_vectors(model, fl), start=1):
+        key = tuple(np.flatnonzero(b))
+        if key not in seen:
+            seen.add(key)
+            out.append(i)
     return out
 
 
@@ -181,6 +207,9 @@ def located(case, e):
     r, rows = _along(case)
     if e.family == "base_flexibility":
         loc["where"] = "under the supports"
+    elif e.family == "added_mass" and not model.node_coords and loc.get("floor"):
+        # a channel's DOF locates it, but the mass moves with its node in every direction
+        loc["where"] = f"at node {floors(model, r, rows)[loc['floor'] - 1].nodes[0]}"
     elif "floor" in loc:
         loc["where"] = "at " + floor_name(model, r, loc["floor"], rows)
     elif "between" in loc and e.family == "hysteretic_damping":

@@ -13,7 +13,7 @@ stiffness [N/m], dashpot [N s/m], delay [s].
 import numpy as np
 
 __all__ = ["receptance", "accelerance", "added_mass_z", "appendage_z", "attach",
-           "attach_accelerance", "gain", "delay"]
+           "attach_transfer", "attach_accelerance", "gain", "delay"]
 
 
 def receptance(A, w):
@@ -55,6 +55,17 @@ def attach(R_col, p, z):
     """
     R_col = np.asarray(R_col)
     return R_col / (1.0 + z * R_col[p])
+
+
+def attach_transfer(R_rb, R_rp, R_pb, R_pp, z):
+    """Receptances R'_{r,b} [m/N] from input b to outputs r after attaching z(w) at p.
+
+    The attachment's force -z x'_p acts at p only, so x' = R_{:,b} F - R_{:,p} z x'_p and
+    R' = R_rb - R_rp z R_pb / (1 + z R_pp). Arrays: R_rb, R_rp (n_r, n_w); R_pb, R_pp, z
+    (n_w,). With b = p this is :func:`attach`.
+    """
+    z, R_pb, R_pp = np.asarray(z), np.asarray(R_pb), np.asarray(R_pp)
+    return np.asarray(R_rb) - np.asarray(R_rp) * (z * R_pb / (1.0 + z * R_pp))[None]
 
 
 def attach_accelerance(A_col, w, p, z):

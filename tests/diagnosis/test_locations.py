@@ -239,3 +239,57 @@ def test_flexible_supports_reroute_the_ground_springs_through_a_base():
     np.testing.assert_allclose(dense.channel_frfs(z, w), ref, rtol=1e-9)
     case = SimpleNamespace(model=model, target=SimpleNamespace(ground_r=r))
     assert place(located(case, BaseFlexibility())) == "under the supports"
+
+
+def test_without_coordinates_an_added_mass_acts_on_its_nodes_translations():
+    """A matrix export (no coordinates): the DOF numbering tells the translations (six per
+    node: ux, uy, uz; three: ux, uy of a planar frame), an added mass located by a channel
+    moves its node in each of them (the FRF equals numpy's with dm on ux and uy of node 21,
+    on a frame whose ux and uy couple), and two channels of one node are one mass location."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+    from nlp.diagnosis.locations import located, mass_floors, translations
+    from nlp.diagnosis.units import place
+    model, row, r = _frame()
+    K = model.K0.toarray()
+    v = np.zeros(model.n)
+    v[[row[(21, 1)], row[(21, 2)]]] = math.sqrt(0.5)
+    K += 3.0e5 * np.outer(v, v)
+    bare = replace(model, node_coords=(), ndm=None, K0=sp.csc_matrix(K), K_infl=(sp.csc_matrix(K),))
+    six = replace(bare, dofs=tuple((nd, d) for nd in (1, 2) for d in range(1, 7)))
+    three = replace(bare, dofs=tuple((nd, d) for nd in (1, 2) for d in range(1, 4)))
+    assert (translations(bare), translations(six), translations(three)) == (2, 3, 2)
+    assert translations(replace(three, ndm=3)) == 3   # a 3-D truss: ux, uy, uz
+    chan_rows = (row[(21, 1)], row[(21, 2)], row[(10, 1)])
+    fl = floors(bare, r, chan_rows)
+    assert mass_floors(bare, fl) == [1, 3]
+    case = SimpleNamespace(model=bare, target=SimpleNamespace(
+        ground_r=r, channels=[SimpleNamespace(dof=i) for i in chan_rows]))
+    assert place(located(case, AddedMass(1))) == "at node 21"
+    assert place(located(case, NonadjacentCoupling(1, 3))) == \
+        "between node 21 (DOF 1) and node 10 (DOF 1)"
+    damping = RayleighDamping(0.2, 0.0005)
+    refs = fe_references(bare, damping, r, chan_rows)
+    dm = 400.0
+    ps = (Parameter("k", "stiffness", 0.0, -0.5, 1.0),
+          Parameter("a0", "damping", 1.0, 0.0, 30.0), Parameter("a1", "damping", 1.0, 0.0, 30.0))
+    params = extend_parameters(ParameterSet(ps, 1, 0), [AddedMass(1)], refs, [[dm]])
+    w = np.linspace(5.0, 80.0, 25)
+    out = (row[(10, 1)], row[(21, 1)], row[(31, 1)])
+    chans = tuple(Channel(f"c{i}", i, "absolute_accelerance") for i in out)
+    tg = Target(w, np.ones((3, w.size), complex), np.ones((3, w.size)), chans, "ground", None,
+                ground_r=r)
+    M0 = bare.M0.toarray()
+    C = 0.2 * M0 + 0.0005 * K
+
+    def numpy_frf(dirs):
+        M = M0.copy()
+        for d in dirs:
+            M[row[(21, d)], row[(21, d)]] += dm
+        q = np.array([np.linalg.solve(K - x ** 2 * M + 1j * x * C, -M @ r) for x in w]).T
+        return -(w ** 2) * q[list(out)] + 1
+    want = numpy_frf((1, 2))
+    pr = UpdatingProblem(bare, damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=[AddedMass(1)], refs=refs, frf_backend="sparse")
+    np.testing.assert_allclose(pr.channel_frfs(pr.z0, w), want, rtol=1e-9)
+    assert np.abs(want / numpy_frf((1,)) - 1).max() > 0.01

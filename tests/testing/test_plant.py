@@ -4,8 +4,8 @@ solves of the modified model, and gain / delay against their time-domain meaning
 import numpy as np
 import pytest
 
-from nlp.testing.plant import (added_mass_z, appendage_z, attach, attach_accelerance, delay,
-                               gain, receptance)
+from nlp.testing.plant import (added_mass_z, appendage_z, attach, attach_accelerance,
+                               attach_transfer, delay, gain, receptance)
 
 W = 2 * np.pi * np.linspace(0.5, 60.0, 2000)      # rad/s, across and beyond the three modes
 
@@ -58,8 +58,15 @@ def test_appendage_matches_the_augmented_model(p):
         A[p, n] -= v
         A[n, p] -= v
     direct = _column(Ma, Ka, Ca, p)[:n]
-    planted = attach(_column(M, K, C, p), p, appendage_z(W, m_a, k_a, c_a))
+    z = appendage_z(W, m_a, k_a, c_a)
+    planted = attach(_column(M, K, C, p), p, z)
     assert _rel(planted, direct) < 1e-10
+    # away from the driving point: input at b, the appendage at p
+    b = (p + 1) % n
+    R_b, R_p = _column(M, K, C, b), _column(M, K, C, p)
+    transfer = attach_transfer(R_b, R_p, R_b[p], R_p[p], z)
+    assert _rel(transfer, _column(Ma, Ka, Ca, b)[:n]) < 1e-10
+    assert _rel(transfer, R_b) > 1e-3
 
 
 def test_accelerance_route_matches_the_direct_solve():
