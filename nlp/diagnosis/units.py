@@ -45,7 +45,11 @@ DERIVED = {("secondary_oscillator", "mu"): ("appendage mass", "m_s", "kg", "m_re
 # labels that depend on the model, (family, prefix, refs key) -> label: under Rayleigh
 # damping the law already damps the base (a0 m_b + a1 k_b), so c_b is only the damping
 # beyond it (families.BaseFlexibility), and a reader must not take it for the whole dashpot
-IN_CONTEXT = {("base_flexibility", "c_base", "rayleigh"): "base dashpot beyond the Rayleigh law"}
+# an FE model without node coordinates has no floors: its locations are the channels' DOFs
+# (nlp.diagnosis.locations), so m_ref is the mean mass there, not a floor's
+IN_CONTEXT = {("base_flexibility", "c_base", "rayleigh"): "base dashpot beyond the Rayleigh law",
+              ("secondary_oscillator", "mu", "channel_masses"):
+                  "appendage mass ratio to the mean mass at the channels' DOFs"}
 
 FAMILY_WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible base",
                 "secondary_oscillator": "an appendage (secondary oscillator)",
@@ -106,7 +110,8 @@ def quantities(finding, refs=None):
     """Every numeric parameter of a finding (diagnosis.json form) as (name, Quantity), in
     order, each followed by its derived quantities (under the same name) when ``refs``
     (m_ref [kg], ...) gives them; ``refs["rayleigh"]`` (the model's damping is a Rayleigh
-    law) relabels the parameters of IN_CONTEXT."""
+    law) and ``refs["channel_masses"]`` (m_ref is the channels' DOFs' mean mass) relabel the
+    parameters of IN_CONTEXT."""
     out = []
     unc = finding.get("uncertainty") or {}
     physics = finding.get("physics", "")

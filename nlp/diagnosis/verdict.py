@@ -11,6 +11,7 @@ from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
 from nlp.diagnosis.discrepancy import beyond_band, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
+from nlp.diagnosis.locations import is_fe
 from nlp.diagnosis.look import Conclusion
 from nlp.diagnosis.plain import finding_line, finding_title, finding_values, held_words, \
     hypotheses, other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, \
@@ -351,10 +352,13 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
 def physical_references(case):
     """The magnitudes the families' parameters are scaled by (mean floor mass [kg], story
     stiffness [N/m], damping [N s/m]): an appendage's mass ratio times m_ref is its mass;
-    "rayleigh": whether the model's damping is a Rayleigh law (units.IN_CONTEXT)."""
+    "rayleigh": whether the model's damping is a Rayleigh law, "channel_masses": whether
+    m_ref is the mean mass at the channels' DOFs, on an FE model without node coordinates
+    (units.IN_CONTEXT)."""
     refs = case_references(case)
     return {"m_ref": refs["m_ref"], "k_ref": refs["k_ref"], "c_ref": refs["c_ref"],
-            "rayleigh": bool(refs.get("rayleigh"))}
+            "rayleigh": bool(refs.get("rayleigh")),
+            "channel_masses": is_fe(case.model) and not case.model.node_coords}
 
 
 def log_conclusion(log, result, refs=None):

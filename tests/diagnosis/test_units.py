@@ -30,3 +30,18 @@ def test_base_dashpot_is_labelled_beyond_the_law_only_under_rayleigh_damping():
     general = dict((n, q.label) for n, q in quantities(f, {"rayleigh": False}))
     assert general["c_base"] == "base dashpot"
     assert dict(quantities(f))["c_base"].label == "base dashpot"
+
+
+def test_appendage_mass_ratio_names_its_reference_mass():
+    """On a model without floors (an FE matrix export) m_ref is the mean mass at the channels'
+    DOFs: the ratio says so, and m_s = mu m_ref either way."""
+    f = {"physics": "secondary_oscillator", "parameters": {"mu": 0.157, "f_s": 2.11},
+         "uncertainty": {"mu": 0.013, "f_s": 0.008}}
+    for refs, label in (({"m_ref": 12000.0, "channel_masses": True},
+                         "appendage mass ratio to the mean mass at the channels' DOFs"),
+                        ({"m_ref": 12000.0}, "appendage mass ratio to the mean floor mass")):
+        qs = quantities(f, refs)
+        assert qs[0][1].label == label
+        m_s = [q for _, q in qs if q.symbol == "m_s"][0]
+        assert math.isclose(m_s.value, 0.157 * 12000.0)
+        assert math.isclose(m_s.relative_se, 0.013 / 0.157)
