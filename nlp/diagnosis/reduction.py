@@ -15,14 +15,17 @@ from dataclasses import replace
 import numpy as np
 
 from nlp.case.assemble import reduced_basis_at, reduced_error
+from nlp.frf.backends.reduced import enrich
+from nlp.frf.backends.system import LinearSystem
 from nlp.solve.identify import standard_errors
 
-__all__ = ["uses_reduced", "basis_of", "recentre_baseline", "PASSES", "TOL_SE"]
+__all__ = ["uses_reduced", "basis_of", "recentre_baseline", "PASSES", "UNION_PASSES", "TOL_SE"]
 
 # a budget, not a decision: each pass is one local solve, and where the basis converges the
 # fixed point's moves shrink by about an order of magnitude per pass, so five passes take a
 # move of hundreds of standard errors below TOL_SE; one that does not settle is reported
 PASSES = 5
+UNION_PASSES = 2   # then passes on one basis spanning several centres (a budget too)
 TOL_SE = 0.1   # stop when no parameter moves by more than this many standard errors
 _BASES = {}    # (id(model), centre bytes) -> (model, basis): the model is kept, so its id is not reused
 
@@ -33,13 +36,19 @@ def uses_reduced(case):
 
 
 def basis_of(case):
-    """The reduced basis at the case's ``basis_centre`` (default: its initial z)."""
+    """The reduced basis at the case's ``basis_centre`` (default: its initial z); a centre of
+    several rows (k, n_z) gives one basis spanning the bases at each (``reduced.enrich``)."""
     z = case.params.z0 if case.basis_centre is None else np.asarray(case.basis_centre, float)
-    key = (id(case.model), z.tobytes())
+    key = (id(case.model), z.shape, z.tobytes())
     if key not in _BASES or _BASES[key][0] is not case.model:
         while len(_BASES) >= 2:
             _BASES.pop(next(iter(_BASES)))
-        _BASES[key] = (case.model, reduced_basis_at(case, z, check=False)[0])
+        if z.ndim == 1:
+            psi = reduced_basis_at(case, z, check=False)[0]
+        else:
+            psi = enrich(LinearSystem.from_model(case.model, case.damping, case.target),
+                         [reduced_basis_at(case, c, check=False)[0] for c in z])
+        _BASES[key] = (case.model, psi)
     return _BASES[key][1]
 
 
@@ -52,21 +61,36 @@ def recentre_baseline(case, refit, z, log):
     """
     n_z = case.params.n_z
     pr, moves = None, []
-    for _ in range(PASSES):
-        case = replace(case, basis_centre=np.array(z[:n_z], float))
+
+    def one_pass(case, z, centre, words):
+        case = replace(case, basis_centre=np.array(centre, float))
         pr, res = refit(case, z)
         r, J = pr.residuals(res.z)
         cov, _, _ = standard_errors(J, r, pr.n_used, pr.constraint_jacobian())
         se = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
         moves.append(float(np.max(np.abs(res.z - z) / se)))
-        z = res.z
-        log(f"reduced basis re-centred on the baseline: largest move {moves[-1]:.3g} "
-            f"standard errors, f {res.f:.6g}")
+        log(f"{words}: largest move {moves[-1]:.3g} standard errors, f {res.f:.6g}")
+        return case, pr, res.z
+
+    for _ in range(PASSES):
+        case, pr, z = one_pass(case, z, z[:n_z], "reduced basis re-centred on the baseline")
         if moves[-1] < TOL_SE:
             break
     else:
-        log(f"warning: the reduced basis did not settle in {PASSES} passes (last move "
-            f"{moves[-1]:.3g} standard errors): the baseline depends on the basis by that much")
+        # the optimum swings between centres (weakly determined directions move it far, and
+        # a basis is accurate only near its centre): one basis spanning the last centres, the
+        # optimum and the nominal model is accurate along the whole swing
+        centres = [z[:n_z], case.basis_centre, case.params.z0[:n_z]]
+        for _ in range(UNION_PASSES):
+            case, pr, z = one_pass(case, z, centres, f"basis spanning {len(centres)} centres "
+                                   f"(the swing of the last passes and the nominal model)")
+            if moves[-1] < TOL_SE:
+                break
+            centres = [z[:n_z]] + centres
+        else:
+            log(f"warning: the reduced basis did not settle in {PASSES} + {UNION_PASSES} "
+                f"passes (last move {moves[-1]:.3g} standard errors): the baseline depends "
+                f"on the basis by that much")
     check = reduced_error(case, pr.evaluator, z[:n_z]) if pr.params.n_z == n_z else None
     if check is not None:
         log(f"reduced vs exact FRF at the baseline: RMS ln|H| error {check['rms_log_error']:.2g} "

@@ -169,3 +169,46 @@ def test_diagnosis_baseline_recentres_its_reduced_basis(tmp_path):
     assert np.max(np.abs(z - ref.z) / se) < 0.2
     assert info["check"]["rms_log_error"] < info["check"]["noise"]
     assert any("reduced vs exact FRF at the baseline" in m for m in logs)
+
+
+def test_a_basis_spanning_two_centres_is_accurate_at_both(tmp_path):
+    """A basis at one centre misses the FRF far from it; the concatenated basis
+    (nlp.frf.backends.reduced.enrich, a centre of several rows in basis_of) spans the bases
+    at both centres, is M-orthonormal, and at each centre its FRF is as close to the exact
+    sparse one as that centre's own basis, where one centre's basis misses the other's by
+    ten times more."""
+    from dataclasses import replace
+    from nlp.diagnosis.reduction import basis_of
+    from nlp.frf.backends.reduced import log_error
+    from nlp.frf.backends.sparse import SparseFRF
+    from nlp.frf.backends.system import LinearSystem
+    path, _ = write_chain_case(str(tmp_path / "c"), "reduced", reduced_cutoff=1.5)
+    case = assemble(load_case(path))
+    z_a = case.params.z0.copy()
+    z_b = z_a.copy()
+    z_b[:GROUPS] = [0.6, -0.4, 0.5, -0.3, 0.4, -0.45]   # far from the nominal stiffnesses
+    full = LinearSystem.from_model(case.model, case.damping, case.target)
+    w = case.target.omega[::6]
+    exact = {k: SparseFRF(full, case.damping, case.params, case.target,
+                          "log_magnitude").frf(z, w) for k, z in (("a", z_a), ("b", z_b))}
+
+    def error(psi, z, k):
+        small = SparseFRF(full.project(psi), case.damping, case.params, case.target,
+                          "log_magnitude")
+        return log_error(exact[k], small.frf(z, w), np.ones_like(exact[k].real))[0]
+
+    psi_a = basis_of(replace(case, basis_centre=z_a))
+    psi_b = basis_of(replace(case, basis_centre=z_b))
+    both = basis_of(replace(case, basis_centre=np.array([z_a, z_b])))
+    M = case.model.M0
+    np.testing.assert_allclose(both.T @ (M @ both), np.eye(both.shape[1]), atol=1e-9)
+    for psi in (psi_a, psi_b):   # each input basis lies in the span: M-projection residual ~ 0
+        rest = psi - both @ (both.T @ (M @ psi))
+        assert np.linalg.norm(rest) < 1e-6 * np.linalg.norm(psi)
+    assert both.shape[1] < psi_a.shape[1] + psi_b.shape[1] + 1
+    far = error(psi_a, z_b, "b")
+    assert far > 1e-4, f"the single basis should miss the far centre here ({far:.1e})"
+    own_a, own_b = error(psi_a, z_a, "a"), error(psi_b, z_b, "b")
+    assert own_b < far / 10   # a basis is accurate near its centre
+    # the concatenation is as accurate at each centre as that centre's own basis
+    assert error(both, z_a, "a") <= 1.01 * own_a and error(both, z_b, "b") <= 1.01 * own_b

@@ -15,7 +15,7 @@ import scipy.sparse.linalg as spla
 
 from nlp.model.damping import band_modes
 
-__all__ = ["basis", "log_error"]
+__all__ = ["basis", "enrich", "log_error"]
 
 
 def basis(system, omega_max, cutoff=2.0, min_modes=4):
@@ -51,6 +51,34 @@ def basis(system, omega_max, cutoff=2.0, min_modes=4):
     Mr = Q.T @ (system.M0 @ Q)
     _, X = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
     return Q @ X
+
+
+def enrich(system, bases, tol=1e-6):
+    """One M0-orthonormal basis spanning several (a concatenated, or global, basis).
+
+    The first basis is kept whole; of each further one only the directions the span so far
+    misses by more than ``tol`` (relative singular value of the part outside it) are
+    added, so bases at nearby centres add little. Ritz vectors of (K0, M0) on the span, as
+    :func:`basis`. A basis computed at one parameter point (a centre) is accurate near it;
+    the concatenation of bases at several centres is accurate at each of them, the usual
+    remedy in parametric model reduction when the parameters range widely.
+    """
+    M = system.M0
+    Q = np.asarray(bases[0], float)
+    for B in bases[1:]:
+        B = np.asarray(B, float)
+        # M-orthogonal complement of B against the span so far (Q is M-orthonormal)
+        R = B - Q @ (Q.T @ (M @ B))
+        U, S, _ = np.linalg.svd(R, full_matrices=False)
+        Bn = np.linalg.norm(B, 2)
+        new = U[:, S > tol * Bn]
+        if new.shape[1]:
+            V = np.column_stack([Q, new])
+            Kr = V.T @ (system.K0 @ V)
+            Mr = V.T @ (M @ V)
+            _, X = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+            Q = V @ X
+    return Q
 
 
 def log_error(H_exact, H_reduced, weight):
