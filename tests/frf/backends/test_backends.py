@@ -172,8 +172,8 @@ def test_sparse_sensitivities_equal_finite_differences(n):
 
 
 def test_batched_banded_and_superlu_paths_agree(monkeypatch):
-    """Batched solves (small systems: one eigendecomposition, or one dense LU per frequency),
-    banded LU (narrow band after RCM) and SuperLU give the same r and J, with Rayleigh (no
+    """Batched solves (small systems: one eigendecomposition, or one dense LU per frequency,
+    all frequencies at once or in blocks), banded LU (narrow band after RCM) and SuperLU give the same r and J, with Rayleigh (no
     border) and modal-basis damping (bordered system)."""
     from nlp.frf.backends import sparse as sparse_backend
     from nlp.frf.backends.pencil import decompose
@@ -191,14 +191,16 @@ def test_batched_banded_and_superlu_paths_agree(monkeypatch):
         assert routes and routes[-1] is not None
         monkeypatch.setattr(sparse_backend, "decompose", lambda *a: None)   # ... or by LU
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
+        monkeypatch.setattr(sparse_backend, "BATCH_BYTES", 16 * 40 ** 2 * 3)  # blocks of 3 frequencies
+        problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.setattr(sparse_backend, "BATCH_MAX", 0)
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.setattr(sparse_backend, "BAND_MAX", -1)
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.undo()
         ev = [p.evaluator for p in problems]
-        assert ev[1].batched and not ev[2].batched and not ev[3].batched and not ev[3].banded
-        assert ev[2].banded == (damping.U is None)
+        assert ev[1].batched and ev[2].batched and not ev[3].batched and not ev[4].batched
+        assert not ev[4].banded and ev[3].banded == (damping.U is None)
         for p in problems[1:]:
             r, J = p.residuals(z)
             assert np.max(np.abs(r - r0)) < 1e-10 and np.max(np.abs(J - J0)) < 1e-9 * np.abs(J0).max()
