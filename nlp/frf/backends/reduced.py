@@ -56,15 +56,17 @@ def basis(system, omega_max, cutoff=2.0, min_modes=4):
 def enrich(system, bases, tol=1e-3):
     """One M0-orthonormal basis spanning several (a concatenated, or global, basis).
 
-    The first basis is kept whole; of each further one only the directions the span so far
-    misses by more than ``tol`` (relative singular value of the part outside it) are
-    added, so bases at nearby centres add little. The default 1e-3 keeps the FRF's error
-    at the level of each centre's own basis (on the 2,100-DOF frame with two storeys' columns
-    at +0.53 and -0.50: 229 vectors and ln|H| within 6.5e-5 at three centres, against 298 and
-    5.9e-5 at 1e-6, and 203 and 4e-3 at 1e-2); the reduced solve's cost grows as the cube. Ritz vectors of (K0, M0) on the span, as
-    :func:`basis`. A basis computed at one parameter point (a centre) is accurate near it;
-    the concatenation of bases at several centres is accurate at each of them, the usual
-    remedy in parametric model reduction when the parameters range widely.
+    A basis computed at one parameter point (a centre) is accurate near it; the
+    concatenation of bases at several centres is accurate at each of them, the usual remedy
+    in parametric model reduction when the parameters range widely. The first basis is kept
+    whole; of each further one only the directions the span so far misses by more than
+    ``tol`` (relative singular value of the part outside it) are added, so bases at nearby
+    centres add little; then Ritz vectors of (K0, M0) on the span, as :func:`basis`.
+
+    The default 1e-3 keeps the FRF's error at the level of each centre's own basis: on the
+    2,100-DOF frame with two storeys' columns at +0.53 and -0.50, 229 vectors and ln|H|
+    within 6.5e-5 at three centres, against 298 and 5.9e-5 at 1e-6, and 203 and 4e-3 at
+    1e-2. The reduced solve's cost grows as the cube of the size.
     """
     M = system.M0
     Q = np.asarray(bases[0], float)

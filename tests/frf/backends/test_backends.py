@@ -173,8 +173,8 @@ def test_sparse_sensitivities_equal_finite_differences(n):
 
 def test_batched_banded_and_superlu_paths_agree(monkeypatch):
     """Batched solves (small systems: one eigendecomposition, or one dense LU per frequency,
-    all frequencies at once or in blocks), banded LU (narrow band after RCM) and SuperLU give the same r and J, with Rayleigh (no
-    border) and modal-basis damping (bordered system)."""
+    all frequencies at once or in blocks), banded LU (narrow band after RCM) and SuperLU give
+    the same r and J, with Rayleigh (no border) and modal-basis damping (bordered system)."""
     from nlp.frf.backends import sparse as sparse_backend
     from nlp.frf.backends.pencil import decompose
     rng = np.random.default_rng(5)
@@ -191,7 +191,7 @@ def test_batched_banded_and_superlu_paths_agree(monkeypatch):
         assert routes and routes[-1] is not None
         monkeypatch.setattr(sparse_backend, "decompose", lambda *a: None)   # ... or by LU
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
-        monkeypatch.setattr(sparse_backend, "BATCH_BYTES", 16 * 40 ** 2 * 3)  # blocks of 3 frequencies
+        monkeypatch.setattr(sparse_backend, "BATCH_BYTES", 16 * 40 ** 2 * 3)  # a few per block
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
         monkeypatch.setattr(sparse_backend, "BATCH_MAX", 0)
         problems.append(UpdatingProblem(model, damping, params, tg, frf_backend="sparse"))
