@@ -88,9 +88,13 @@ def plant_mass(M, dofs, node, dm):
     return (M + sp.csc_matrix((np.full(len(rows), dm), (rows, rows)), shape=M.shape)).tocsc(), rows
 
 
-def modal_sum(M, K, a0, a1, b, rows, f, power):
+def modes(M, K):
+    """Undamped modes of (K, M), mass-normalised: (w_i^2, Phi)."""
+    return sla.eigh(K.toarray(), M.toarray())
+
+
+def modal_sum(w2, Phi, a0, a1, b, rows, f, power):
     """(jw)^power sum over all modes of phi phi^T b / (w_i^2 - w^2 + jw (a0 + a1 w_i^2))."""
-    w2, Phi = sla.eigh(K.toarray(), M.toarray())
     part = Phi[rows] * (Phi.T @ b)
     w = 2 * np.pi * np.asarray(f)
     den = w2[:, None] - w[None] ** 2 + 1j * w[None] * (a0 + a1 * w2[:, None])
@@ -112,8 +116,7 @@ def main():
     if a.plant == "appendage" and not a.hz:
         ap.error("--plant appendage needs --hz")
     here, case, truth, M, K, a0, a1, dofs = read_case(a.case)
-    z = np.load(os.path.join(here, case["data"]["file"]))
-    f = z["f"]
+    f = np.load(os.path.join(here, case["data"]["file"]))["f"]
     ex = case["excitation"]
     if ex.get("type") != "force":
         raise SystemExit(f"{a.case}: excitation.type: force input expected")
@@ -139,17 +142,18 @@ def main():
         planted = {"family": "added_mass", "node": a.node, "dofs": [dofs[i][1] for i in mrows],
                    "dm": a.kg, "mass_ratio_to_dof_mass": a.kg / M[mrows[0], mrows[0]]}
     w = 2 * np.pi * f
+    frame = modes(M, K)
     if a.plant == "appendage":
         # the frame's receptances from all its modes (classical: Rayleigh), then the appendage
         ep = np.zeros(n)
         ep[p] = 1.0
-        R = modal_sum(M, K, a0, a1, b, rows + [p], f, 0)
-        R_rp = modal_sum(M, K, a0, a1, ep, rows + [p], f, 0)
+        R = modal_sum(*frame, a0, a1, b, rows + [p], f, 0)
+        R_rp = modal_sum(*frame, a0, a1, ep, rows + [p], f, 0)
         z = appendage_z(w, a.kg, extra["k_s"], extra["c_s"])
         H = (1j * w[None]) ** power * attach_transfer(R[:-1], R_rp[:-1], R[-1], R_rp[-1], z)
     else:   # Rayleigh over the planted model: classical, its own modes
-        H = modal_sum(Mp, K, a0, a1, b, rows, f, power)
-    H0 = modal_sum(M, K, a0, a1, b, rows, f, power)
+        H = modal_sum(*modes(Mp, K), a0, a1, b, rows, f, power)
+    H0 = modal_sum(*frame, a0, a1, b, rows, f, power)
     # checked against sparse direct solves of the planted model itself at a few frequencies
     check = np.array([0, f.size // 3, 2 * f.size // 3, f.size - 1])
     Hs = frf_sparse(Mp, Kp, Cp, bp, rows, f[check], power=power)
