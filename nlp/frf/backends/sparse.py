@@ -33,7 +33,7 @@ import casadi as ca
 
 from nlp.frf.backends.allocator import retain_freed_memory
 from nlp.frf.backends.banded import solve_banded_batch, solve_pivoted
-from nlp.frf.backends.pencil import decompose
+from nlp.frf.backends.pencil import decompose, on_pattern, span, stand_in, update
 from nlp.frf.backends.bilinear import Bilinear, Pattern, aggregate, real_times_complex
 from nlp.frf.backends.terms import terms_state
 from nlp.frf.forms import POWER
@@ -49,6 +49,7 @@ DENSE_MAX_LU = 1500
 BATCH_BYTES = 64e6
 CHUNK_BYTES = 2 ** 24  # working memory of one chunk of frequencies: 16 MiB keeps it near the caches (measured)
 CHUNK_MIN = 256  # frequencies per chunk at least: each of the n steps of a banded pass then does real work
+UPDATE_SHARE = 0.25  # the families' terms solved as a low-rank update up to this rank / n (pencil.update)
 
 
 def _span(ix):
@@ -125,6 +126,7 @@ class SparseFRF:
         # db/dz: sparse (ground input -M_r r has the few nonzeros of M_r)
         self.B_z = sp.csr_matrix(Tb[:, self.z_b].T @ self.B_infl if self.nb else np.zeros((0, n)))
         self._choose_solver()
+        self._Q = self._term_span()
         self.fallbacks = 0  # frequencies re-solved with pivoting (batched banded path)
         self._last = None
         retain_freed_memory()  # each evaluation reuses the last one's memory, no page faults
@@ -252,24 +254,38 @@ class SparseFRF:
         return X
 
     def _pencil_solve(self, st, w, rhs):
-        """Solves by one eigendecomposition per evaluation (:mod:`nlp.frf.backends.pencil`),
-        or None where that route is not accurate (then one LU per frequency)."""
+        """Solves by one eigendecomposition per evaluation (:mod:`nlp.frf.backends.pencil`; low-rank
+        families: an update of the base's), or None where not accurate (then LU per frequency)."""
         if "pencil" not in vars(st):
-            n, (r, c) = self.n, (self.pat.rows, self.pat.cols)
-            vals = [st.vK, st.cK * st.vK + st.cM * st.vM, st.vM]
-            if self.nD:
-                vals[1] = vals[1] + st.vD
-            if self.nT:
-                vals = [vals[0] + st.tv[0] + 1j * st.tv[3], vals[1] + st.tv[2], vals[2] + st.tv[1]]
-            A = []
-            for v in vals:
-                D = np.zeros((n, n), complex if np.iscomplexobj(v) else float)
-                D[r, c] = v
-                A.append(D)
-            if self.m:  # the bordered rank-m damping, folded back into C: U S U^T
-                A[1] = A[1] + st.US @ self.sys.U.T
-            st.pencil = decompose(*A, w, rhs)
+            A = self._dense(st)
+            st.pencil = None
+            if self._Q is not None:
+                B = stand_in(self._dense(st, False), self.terms.n_extra, st.cK, st.cM)
+                st.pencil = update(decompose(*B, w, rhs), self._Q, A, w, rhs)
+            if st.pencil is None:
+                st.pencil = decompose(*A, w, rhs)
         return None if st.pencil is None else st.pencil.solve(w, rhs)
+
+    def _dense(self, st, terms=True):
+        """Dense A0, A1, A2 of Z = A0 + j w A1 - w^2 A2 at one evaluation (``terms``: with the
+        families')."""
+        vals = [st.vK, st.cK * st.vK + st.cM * st.vM, st.vM]
+        if self.nD:
+            vals[1] = vals[1] + st.vD
+        if self.nT and terms:
+            vals = [vals[0] + st.tv[0] + 1j * st.tv[3], vals[1] + st.tv[2], vals[2] + st.tv[1]]
+        A = [on_pattern(self.n, self.pat.rows, self.pat.cols, v) for v in vals]
+        if self.m:  # the bordered rank-m damping, folded back into C: U S U^T
+            A[1] = A[1] + st.US @ self.sys.U.T
+        return A
+
+    def _term_span(self):
+        """Q spanning the families' terms and extra DOFs (pencil route, Rayleigh damping), or
+        None above rank ``UPDATE_SHARE`` n."""
+        if not (self.nT and self.batched and not self.m and not self.nD):
+            return None
+        Q = span(self.terms.P, extra=self.terms.n_extra)
+        return Q if Q is not None and Q.shape[1] <= UPDATE_SHARE * self.n else None
 
     def _chunks(self, N, n_res):
         """Slices of the frequency axis whose working arrays fit in ``CHUNK_BYTES``."""

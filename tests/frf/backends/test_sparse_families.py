@@ -155,6 +155,43 @@ def test_appendage_dof_is_the_augmented_solve():
     np.testing.assert_allclose(q, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
 
 
+def test_appendage_and_mass_are_a_low_rank_update_of_the_modal_sum():
+    """16 floors, an appendage and an added mass on a Rayleigh frame: the small dense system
+    is solved by the frame's modal sum and a rank-3 Woodbury update (pencil.Updated), not
+    the first-order form, and q is the numpy solve of the augmented M, C, K."""
+    from nlp.frf.backends.pencil import Updated
+    n = 16
+    mt, kt = np.linspace(3.0, 1.5, n), np.linspace(3000.0, 1800.0, n)
+    mu, fs, zeta, dm = 0.04, 5.0, 0.03, 0.6
+    fams = [SecondaryOscillator(9, 6.0), AddedMass(4)]
+    damping = RayleighDamping(A0, A1)
+    ps = [Parameter(f"k{i + 1}", "stiffness", 0.0, -0.5, 1.0, nominal=kt[i]) for i in range(n)]
+    ps += [Parameter(f"m{i + 1}", "mass", 0.0, -0.5, 1.0, nominal=mt[i]) for i in range(n)]
+    ps += [Parameter(nm, "damping", t, a, b, fixed=True) for nm, t, a, b in
+           zip(damping.names, damping.initial(), *damping.default_bounds())]
+    params = extend_parameters(ParameterSet(tuple(ps), n, n), fams, REF, [[mu, fs, zeta], [dm]])
+    tg = Target(W, np.ones((1, W.size)), np.ones((1, W.size)),
+                (Channel("c1", n - 1, "accelerance"),), "ground", None)
+    pr = UpdatingProblem(shear_frame(mt, kt), damping, params, tg, solver=SolverConfig(compile=False),
+                         enrichments=fams, refs=REF, frf_backend="sparse")
+    ev = pr.evaluator
+    st = ev._state(np.asarray(pr.z0, float))
+    q, _ = ev._solve(st, W, False)
+    assert isinstance(st.pencil, Updated) and st.pencil.Q.shape[1] == 3
+    ms, ws = mu * REF["m_ref"], 2 * math.pi * fs
+    K = shear_stiffness(kt)
+    C = A0 * np.diag(mt) + A1 * K
+    v = np.zeros(n + 1)
+    v[[8, n]] = 1.0, -1.0
+    Ma = np.diag([*mt, ms])
+    Ma[3, 3] += dm
+    Ka = np.pad(K, (0, 1)) + ms * ws ** 2 * np.outer(v, v)
+    Ca = np.pad(C, (0, 1)) + 2 * zeta * ms * ws * np.outer(v, v)
+    b = -Ma @ np.ones(n + 1)
+    ref = np.array([np.linalg.solve(Ka - w ** 2 * Ma + 1j * w * Ca, b) for w in W]).T
+    np.testing.assert_allclose(q, ref, rtol=1e-9, atol=1e-11 * np.abs(ref).max())
+
+
 def test_choose_keeps_sparse_for_large_models_with_families():
     fams = [AddedMass(1)]
     assert choose("auto", 4, fams) == "dense"
