@@ -55,7 +55,9 @@ WORDS = {"added_mass": "an unmodelled mass", "base_flexibility": "a flexible bas
 def statement(r):
     """One sentence naming a finding r (public form): family, location, values."""
     loc = r["location"]
-    if "floor" in loc:
+    if "where" in loc:      # an FE model's place in its own terms (locations.located)
+        where = loc["where"]
+    elif "floor" in loc:
         where = f"at floor {loc['floor']}"
     elif "between" in loc:
         a, b = loc["between"]

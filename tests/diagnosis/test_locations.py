@@ -293,3 +293,15 @@ def test_without_coordinates_an_added_mass_acts_on_its_nodes_translations():
                          enrichments=[AddedMass(1)], refs=refs, frf_backend="sparse")
     np.testing.assert_allclose(pr.channel_frfs(pr.z0, w), want, rtol=1e-9)
     assert np.abs(want / numpy_frf((1,)) - 1).max() > 0.01
+
+
+def test_finding_statement_names_the_fe_place_and_a_shear_frame_its_floor():
+    """diagnosis.json's sentence uses the model's own place (node tag) when the location has
+    one, and the floor number on a shear frame."""
+    from nlp.diagnosis.verdict import statement
+    base = {"physics": "added_mass", "parameters": {"dm5": 10009.6},
+            "uncertainty": {"dm5": 89.4}}
+    fe = statement({**base, "location": {"floor": 5, "where": "at node 60604"}})
+    assert "at node 60604 (dm5 = 1.001e+04 +- 89)" in fe and "floor" not in fe
+    shear = statement({**base, "location": {"floor": 5}})
+    assert "at floor 5 (" in shear
