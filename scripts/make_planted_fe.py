@@ -12,6 +12,12 @@ a0, a1) plus one planted effect; the nominal model the case updates from is unch
 * ``mass``: a lumped mass dm [kg] at one node, on each of its translations (ux, uy, uz), as
   OpenSees' ``mass`` command adds it; Rayleigh damping of the whole planted model, as an FE
   program applies it.
+* ``support``: flexible supports, every support moving with one base DOF u_b along ``--dof``
+  (a foundation of mass m_b [kg] on a sway spring k_b [N/m] to the ground, as soil under a
+  mat). The matrix files have the supports' DOFs removed, so the structure's forces on them
+  are -K r per unit support translation, r the rigid translation (1 on every ``--dof``
+  row): in absolute coordinates K' = [[K, -K r], [-r^T K, r^T K r + k_b]], M' = diag(M, m_b),
+  and Rayleigh damping over the whole planted model.
 
 Data are simulated by sparse direct solves of the planted model
 (``nlp.testing.sparse_sim``, written apart from the package's FRF code), checked against a
@@ -22,6 +28,8 @@ frequencies, channels and excitation are the case's own.
     python scripts/make_planted_fe.py --case cases/frame3d_2100/case.yaml --out DIR \\
         --plant appendage --node 100604 --dof ux --kg 2000 --hz 2.10 [--zeta 0.02] [--seed 1]
     python scripts/make_planted_fe.py --case ... --out DIR --plant mass --node 60604 --kg 20000
+    python scripts/make_planted_fe.py --case ... --out DIR --plant support --dof ux --kg 30000 \
+        --kb 1.24e9
 """
 
 import argparse
@@ -88,6 +96,16 @@ def plant_mass(M, dofs, node, dm):
     return (M + sp.csc_matrix((np.full(len(rows), dm), (rows, rows)), shape=M.shape)).tocsc(), rows
 
 
+def plant_support(M, K, dofs, dof, m_b, k_b):
+    """M', K' with the base DOF last (module docstring) and the rigid translation r."""
+    n = M.shape[0]
+    r = np.array([1.0 if d == LABELS[dof] else 0.0 for _, d in dofs])
+    Kr = sp.csc_matrix(K @ r).reshape(n, 1)
+    Kp = sp.bmat([[K, -Kr], [-Kr.T, sp.csc_matrix([[r @ (K @ r) + k_b]])]], format="csc")
+    Mp = sp.bmat([[M, None], [None, sp.csc_matrix([[m_b]])]], format="csc")
+    return Mp, Kp, r
+
+
 def modes(M, K):
     """Undamped modes of (K, M), mass-normalised: (w_i^2, Phi)."""
     return sla.eigh(K.toarray(), M.toarray())
@@ -105,16 +123,21 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--plant", choices=("appendage", "mass"), required=True)
-    ap.add_argument("--node", type=int, required=True)
+    ap.add_argument("--plant", choices=("appendage", "mass", "support"), required=True)
+    ap.add_argument("--node", type=int, help="the node of an appendage or a mass")
     ap.add_argument("--dof", default="ux", choices=sorted(LABELS))
-    ap.add_argument("--kg", type=float, required=True, help="appendage or added mass [kg]")
+    ap.add_argument("--kg", type=float, required=True, help="appendage, added or base mass [kg]")
+    ap.add_argument("--kb", type=float, help="the supports' sway stiffness k_b [N/m]")
     ap.add_argument("--hz", type=float, help="appendage's own frequency f_s [Hz]")
     ap.add_argument("--zeta", type=float, default=0.02, help="appendage's damping ratio")
     ap.add_argument("--seed", type=int, default=1, help="noise seed (the case's was 0)")
     a = ap.parse_args()
     if a.plant == "appendage" and not a.hz:
         ap.error("--plant appendage needs --hz")
+    if a.plant == "support" and not a.kb:
+        ap.error("--plant support needs --kb")
+    if a.plant != "support" and a.node is None:
+        ap.error(f"--plant {a.plant} needs --node")
     here, case, truth, M, K, a0, a1, dofs = read_case(a.case)
     f = np.load(os.path.join(here, case["data"]["file"]))["f"]
     ex = case["excitation"]
@@ -136,6 +159,12 @@ def main():
         planted = {"family": "secondary_oscillator", "node": a.node, "dof": a.dof, "m_s": a.kg,
                    "f_s_hz": a.hz, "zeta_s": a.zeta, **extra,
                    "mass_ratio_to_dof_mass": a.kg / M[p, p]}
+    elif a.plant == "support":
+        Mp, Kp, r = plant_support(M, K, dofs, a.dof, a.kg, a.kb)
+        Cp, bp = a0 * Mp + a1 * Kp, np.append(b, 0.0)
+        planted = {"family": "base_flexibility", "direction": a.dof, "m_base": a.kg, "k_b": a.kb,
+                   "rigid_stiffness_rKr": float(r @ (K @ r)),
+                   "sway_hz_on_the_spring": float(np.sqrt(a.kb / (r @ (M @ r) + a.kg)) / (2 * np.pi))}
     else:
         Mp, mrows = plant_mass(M, dofs, a.node, a.kg)
         Kp, Cp, bp = K, a0 * Mp + a1 * K, b
@@ -152,7 +181,7 @@ def main():
         z = appendage_z(w, a.kg, extra["k_s"], extra["c_s"])
         H = (1j * w[None]) ** power * attach_transfer(R[:-1], R_rp[:-1], R[-1], R_rp[-1], z)
     else:   # Rayleigh over the planted model: classical, its own modes
-        H = modal_sum(*modes(Mp, K), a0, a1, b, rows, f, power)
+        H = modal_sum(*modes(Mp, Kp), a0, a1, bp, rows, f, power)
     H0 = modal_sum(*frame, a0, a1, b, rows, f, power)
     # checked against sparse direct solves of the planted model itself at a few frequencies
     check = np.array([0, f.size // 3, 2 * f.size // 3, f.size - 1])
@@ -175,7 +204,8 @@ def main():
         os.makedirs(os.path.dirname(os.path.join(a.out, rel)) or a.out, exist_ok=True)
         shutil.copy(os.path.join(here, rel), os.path.join(a.out, rel))
     write_case(a.out, f, Hn, out_truth, case)
-    print(f"wrote {a.out}: {a.plant} at node {a.node}; check {err:.1e}; largest |ln H'/H| "
+    where = f"at node {a.node}" if a.node is not None else f"under the supports along {a.dof}"
+    print(f"wrote {a.out}: {a.plant} {where}; check {err:.1e}; largest |ln H'/H| "
           f"{change.max():.3f}, {(change > noise).sum()} of {change.size} values changed by "
           f"more than the noise ({noise})")
 
