@@ -199,15 +199,15 @@ def points_stage(cfg, case, widen, hot, log):
     hot frequencies), the held-out shoulders (3x wider, not fitted), and the target."""
     advance("diagnose", "points" if widen == 1 else "points (widened look)")
     fit = fit_windows(cfg, case, widen)
-    held = fit_windows(cfg, case, 3 * widen)
-    if hot:
-        fit, held = hot_windows(cfg, case, fit, held, hot, log)
-    held = np.setdiff1d(held, fit)
-    if held.size == 0 and not hot:  # held-out tests need points no fit used
+    held = np.setdiff1d(fit_windows(cfg, case, 3 * widen), fit)
+    if held.size == 0:  # held-out tests need points no fit used (hot windows too: else NaN)
         fit = np.intersect1d(fit_windows(cfg, case, widen, windows=True), case.selected)
         held = np.setdiff1d(case.selected, fit)
         log(f"the case fits every frequency: the diagnosis fits its half-power windows ({fit.size} "
             f"points) and holds out the other {held.size}")
+    if hot:
+        fit, held = hot_windows(cfg, case, fit, held, hot, log)
+        held = np.setdiff1d(held, fit)
     sig_fit, sig_held = noise_sigma(case, fit), noise_sigma(case, held)
     target = fit_target(case, fit, sig_fit)
     base = diagnosis_problem(case, target)

@@ -973,3 +973,10 @@ def test_case_fitting_every_frequency_holds_out_the_points_between_windows(tmp_p
     assert points.held.size > 0 and np.intersect1d(points.held, points.fit).size == 0
     assert np.array_equal(np.union1d(points.fit, points.held), case.selected)
     assert any("fits every frequency" in ln for ln in lines)
+    # with a hot frequency between two modes (the widened look) the windows and the hot
+    # window are fitted and the rest still held out (it was empty: held-out misfits NaN)
+    hot = (float(np.sqrt(case.f[points.fit].min() * case.f[points.fit].max())),)
+    hot_pts = D.points_stage(cfg_all, case, 1, hot, lines.append)
+    assert np.isin(points.fit, hot_pts.fit).all() and hot_pts.fit.size > points.fit.size
+    assert hot_pts.held.size > 0 and np.intersect1d(hot_pts.held, hot_pts.fit).size == 0
+    assert np.array_equal(np.union1d(hot_pts.fit, hot_pts.held), case.selected)
