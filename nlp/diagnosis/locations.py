@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["is_fe", "Floor", "floors", "floor_vectors", "mass_vectors", "translations",
+__all__ = ["is_fe", "rigid_translation", "Floor", "floors", "floor_vectors", "mass_vectors", "translations",
            "mass_floors", "floor_count", "case_floors", "story_count", "floor_name",
            "fe_references", "located"]
 
@@ -42,6 +42,15 @@ def _direction(model, ground_r):
         if hit:
             return hit[0]
     return 1
+
+
+def rigid_translation(model, ground_r):
+    """r, the rigid translation a flexible base moves the supports by: the ground's influence
+    vector, else 1 on every DOF along the excitation's direction (:func:`_direction`)."""
+    if ground_r is not None:
+        return np.asarray(ground_r, float)
+    d = _direction(model, ground_r)
+    return np.array([1.0 if dof == d else 0.0 for _, dof in model.dofs])
 
 
 def floors(model, ground_r=None, channel_rows=()):
@@ -186,10 +195,7 @@ def fe_references(model, damping, ground_r, channel_rows=()):
         C = sp.csr_matrix(damping.matrix(damping.initial(), M, K))
     except (AttributeError, TypeError, ValueError):
         C = None
-    d = _direction(model, ground_r)
-    rigid = np.asarray(ground_r, float) if ground_r is not None else \
-        np.array([1.0 if dof == d else 0.0 for _, dof in model.dofs])
-    return {"r": rigid,   # the rigid translation a flexible base moves the supports by
+    return {"r": rigid_translation(model, ground_r),
             "m_ref": float(np.mean([r @ (M @ r) for r in e])),
             "k_ref": float(np.mean([r @ (K @ r) for r in e]) / 2),
             "c_ref": float(np.mean([r @ (C @ r) for r in e])) if C is not None else 1.0,

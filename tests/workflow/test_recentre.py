@@ -212,3 +212,32 @@ def test_a_basis_spanning_two_centres_is_accurate_at_both(tmp_path):
     assert own_b < far / 10   # a basis is accurate near its centre
     # the concatenation is as accurate at each centre as that centre's own basis
     assert error(both, z_a, "a") <= 1.01 * own_a and error(both, z_b, "b") <= 1.01 * own_b
+
+
+@pytest.mark.parametrize("drop_r", [False, True])
+def test_diagnosis_basis_carries_a_flexible_base(tmp_path, monkeypatch, drop_r):
+    """A flexible base moves every support by the rigid translation r, which fixed-base modes
+    and static vectors do not span: the diagnosis's reduced basis (reduction.basis_of) adds
+    it, and the base family's FRF on it then follows the exact sparse one (without r it
+    misses by several times the data noise of 0.01)."""
+    import math
+    import nlp.diagnosis.reduction as red
+    from nlp.diagnosis.families import BaseFlexibility
+    from nlp.diagnosis.fitting import case_references, diagnosis_problem, fit_target, with_values
+    if drop_r:
+        monkeypatch.setattr(red, "_support_translation", lambda case: np.zeros(case.model.n))
+    H = {}
+    for backend in ("sparse", "reduced"):
+        folder = tmp_path / backend
+        folder.mkdir()
+        case = assemble(load_case(write_chain_case(str(folder), backend)[0]))
+        idx = np.arange(case.f.size)
+        target = fit_target(case, idx, np.full((len(case.channels), idx.size), 0.01))
+        refs = case_references(case)
+        pr = diagnosis_problem(case, target, [BaseFlexibility()], compile=False)
+        assert pr.backend == backend
+        z = with_values(pr, pr.z0[:-3], [2.0 * refs["m_ref"], math.log10(refs["k_ref"]) + 0.5,
+                                         0.0])
+        H[backend] = pr.channel_frfs(z, 2 * np.pi * case.f)
+    miss = np.abs(np.log(H["reduced"] / H["sparse"])).max()
+    assert (miss > 0.05) if drop_r else (miss < 0.02)
