@@ -128,13 +128,14 @@ class BaseFlexibility:
         gK, gH = ca.mtimes(K, one), ca.mtimes(Kh, one)
         if sys.get("rayleigh") is not None:
             cM, cK = sys["rayleigh"]
-            C = _augment(C, -cK * gK, cK * (ca.sum1(gK) + kb) + cM * th[0] + th[2])
+            C = _augment(C, -cK * gK, cK * (ca.dot(one, gK) + kb) + cM * th[0] + th[2])
         else:
             gC = ca.mtimes(C, one)
-            C = _augment(C, -gC, ca.sum1(gC) + th[2])
+            C = _augment(C, -gC, ca.dot(one, gC) + th[2])
+        # r^T A r on the base's diagonal (the sum of A r when r is all ones: a shear frame)
         return {**sys, "M": _augment(M, ca.SX.zeros(n), th[0]),
-                "K": _augment(K, -gK, ca.sum1(gK) + kb), "C": C,
-                "Kh": _augment(Kh, -gH, ca.sum1(gH))}
+                "K": _augment(K, -gK, ca.dot(one, gK) + kb), "C": C,
+                "Kh": _augment(Kh, -gH, ca.dot(one, gH))}
 
 
 ZETA_S_MIN = 0.001   # lower bound of an appendage's damping ratio in its fit
