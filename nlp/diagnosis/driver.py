@@ -46,7 +46,7 @@ from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
-from nlp.diagnosis.nuisance import hold_open_nuisance
+from nlp.diagnosis.nuisance import hold_open_nuisance, why_refused
 from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
 from nlp.diagnosis.reciprocity import reciprocal_pairs, refute_gains
 from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
@@ -419,8 +419,7 @@ def judge_round(case, points, base, sel, others, results, rnd, log):
     for r in results:
         log(f"  [{rnd + 1}] {r['physics']} {r['location']}: score {r['score']:.1f}, "
             f"dBIC {r['delta_bic']:.1f} (phi {r['phi']:.2f}), held-out {r['held_out']:.2f}"
-            f"{' (accepted)' if r['accepted'] else ''}"
-            f"{'' if r['significant'] else ' [' + r['why_not'] + ']'}")
+            f"{' (accepted)' if r['accepted'] else ' [' + why_refused(r) + ']'}")
     refute_gains(sel, results, log)
     refute_in_discrepancy(case.discrepancy, results, log)
     sel.tried += results

@@ -19,7 +19,7 @@ from nlp.diagnosis.fitting import case_references
 from nlp.diagnosis.refit import refit
 
 __all__ = ["Held", "reference", "hold", "open_nuisance", "settle",
-           "hold_open_nuisance"]
+           "hold_open_nuisance", "why_refused"]
 
 @dataclass(frozen=True)
 class Held:
@@ -137,12 +137,14 @@ def _said(held):
     return ", ".join(f"{n} held at {v:.4g}" for n, v in held.items())
 
 
-def _why(r):
+def why_refused(r):
     """Why a judged result is not accepted, in words."""
     if not r["significant"]:
         return r["why_not"]
     if r["at_bound"]:
-        return "a parameter lies on its bound"
+        on = [f"{n} = {r['parameters'][n]:.4g}" for n in r.get("on_bound", ())
+              if n in r["parameters"]]
+        return f"{', '.join(on) or 'a parameter'} on the bound of its family's range"
     if r["delta_bic"] > -BIC_ACCEPT:
         return f"its scaled BIC change {r['delta_bic']:.1f} is above -{BIC_ACCEPT:g}"
     return f"its held-out chi-square {r['held_out']:.2f} fails the held-out test"
@@ -188,7 +190,7 @@ def settle(results, judge, refit_held, refs, log=print):
         phi = judge(results)
         for r in results:   # judge clears every reason: a held refusal says what was held
             if r.get("held") and not r["accepted"]:
-                r["why_not"] = f"with {_said(r['held'])} (the data do not determine it), {_why(r)}"
+                r["why_not"] = f"with {_said(r['held'])} (the data do not determine it), {why_refused(r)}"
         for i, _ in todo:
             r = results[i]
             log(f"    {r['physics']} {r['location']}: {_said(r['held'])} (the data do not "

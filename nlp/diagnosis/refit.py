@@ -57,16 +57,17 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
     if not np.isfinite(res.f) or res.f > f_null:
         res = replace(res, z=z_null, f=f_null, success=False)
     theta_e = pr.theta(res.z)[-k:]
-    at_bound = any(abs(t - b) <= 1e-5 * max(abs(sc), 1e-12)
-                   for t, lo_, hi_, sc in zip(theta_e, sp["lower"], sp["upper"], sp["scale"])
-                   for b in (lo_, hi_) if b != 0.0)
+    on_bound = [n for n, t, lo_, hi_, sc in zip(e.names, theta_e, sp["lower"], sp["upper"],
+                                                sp["scale"])
+                if any(abs(t - b) <= 1e-5 * max(abs(sc), 1e-12) for b in (lo_, hi_) if b != 0.0)]
+    at_bound = bool(on_bound)
     rh = normalised(pr, res.z, case, held, sig_held)
     se = quasi_se(pr, res.z)[0][-k:]
     return {"physics": e.family, "location": located(case, e), "enrichment": e,
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
-            "at_bound": at_bound, "converged": bool(res.success), "z": res.z, "problem": pr,
+            "at_bound": at_bound, "on_bound": on_bound, "converged": bool(res.success), "z": res.z, "problem": pr,
             "split": appendage_resolution(case, pr, res.z) if e.family == "secondary_oscillator" else None}
 
 

@@ -980,3 +980,15 @@ def test_case_fitting_every_frequency_holds_out_the_points_between_windows(tmp_p
     assert np.isin(points.fit, hot_pts.fit).all() and hot_pts.fit.size > points.fit.size
     assert hot_pts.held.size > 0 and np.intersect1d(hot_pts.held, hot_pts.fit).size == 0
     assert np.array_equal(np.union1d(hot_pts.fit, hot_pts.held), case.selected)
+
+
+def test_a_refusal_names_its_reason_and_the_parameter_on_its_bound():
+    """The round log says why each refit was refused; on a bound it names the parameter."""
+    from nlp.diagnosis.nuisance import why_refused
+    r = {"significant": True, "at_bound": True, "on_bound": ["m_base"],
+         "parameters": {"m_base": 60000.0, "log10_kb": 9.1, "c_base": 0.0},
+         "delta_bic": -1.5e5, "held_out": 221.0}
+    assert why_refused(r) == "m_base = 6e+04 on the bound of its family's range"
+    assert why_refused({**r, "at_bound": False, "delta_bic": -4.0}).startswith(
+        "its scaled BIC change -4.0 is above")
+    assert why_refused({**r, "significant": False, "why_not": "x"}) == "x"
