@@ -164,7 +164,8 @@ def main():
         Cp, bp = a0 * Mp + a1 * Kp, np.append(b, 0.0)
         planted = {"family": "base_flexibility", "direction": a.dof, "m_base": a.kg, "k_b": a.kb,
                    "rigid_stiffness_rKr": float(r @ (K @ r)),
-                   "sway_hz_on_the_spring": float(np.sqrt(a.kb / (r @ (M @ r) + a.kg)) / (2 * np.pi))}
+                   "sway_hz_on_the_spring": float(np.sqrt(a.kb / (r @ (M @ r) + a.kg))
+                                                  / (2 * np.pi))}
     else:
         Mp, mrows = plant_mass(M, dofs, a.node, a.kg)
         Kp, Cp, bp = K, a0 * Mp + a1 * K, b

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["is_fe", "rigid_translation", "Floor", "floors", "floor_vectors", "mass_vectors", "translations",
+__all__ = ["is_fe", "rigid_translation", "Floor", "floors", "floor_vectors", "mass_vectors",
+           "translations",
            "mass_floors", "floor_count", "case_floors", "story_count", "floor_name",
            "fe_references", "located"]
 

@@ -190,7 +190,8 @@ def settle(results, judge, refit_held, refs, log=print):
         phi = judge(results)
         for r in results:   # judge clears every reason: a held refusal says what was held
             if r.get("held") and not r["accepted"]:
-                r["why_not"] = f"with {_said(r['held'])} (the data do not determine it), {why_refused(r)}"
+                r["why_not"] = (f"with {_said(r['held'])} (the data do not determine it), "
+                                f"{why_refused(r)}")
         for i, _ in todo:
             r = results[i]
             log(f"    {r['physics']} {r['location']}: {_said(r['held'])} (the data do not "

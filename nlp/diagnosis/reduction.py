@@ -53,7 +53,7 @@ def basis_of(case):
         # planted flexible supports, the family at the true values fitted at reduced
         # chi-square 467 without r in the basis and 1.04 with it (basis at the truth)
         bases.append(_support_translation(case)[:, None])
-        psi = bases[0] if len(bases) == 1 else enrich(system, bases)
+        psi = enrich(system, bases)
         _BASES[key] = (case.model, psi)
     return _BASES[key][1]
 

@@ -67,7 +67,8 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
-            "at_bound": at_bound, "on_bound": on_bound, "converged": bool(res.success), "z": res.z, "problem": pr,
+            "at_bound": at_bound, "on_bound": on_bound, "converged": bool(res.success),
+            "z": res.z, "problem": pr,
             "split": appendage_resolution(case, pr, res.z) if e.family == "secondary_oscillator" else None}
 
 

@@ -172,8 +172,8 @@ def test_appendage_and_mass_are_a_low_rank_update_of_the_modal_sum():
     params = extend_parameters(ParameterSet(tuple(ps), n, n), fams, REF, [[mu, fs, zeta], [dm]])
     tg = Target(W, np.ones((1, W.size)), np.ones((1, W.size)),
                 (Channel("c1", n - 1, "accelerance"),), "ground", None)
-    pr = UpdatingProblem(shear_frame(mt, kt), damping, params, tg, solver=SolverConfig(compile=False),
-                         enrichments=fams, refs=REF, frf_backend="sparse")
+    pr = UpdatingProblem(shear_frame(mt, kt), damping, params, tg, enrichments=fams, refs=REF,
+                         solver=SolverConfig(compile=False), frf_backend="sparse")
     ev = pr.evaluator
     st = ev._state(np.asarray(pr.z0, float))
     q, _ = ev._solve(st, W, False)
