@@ -119,13 +119,17 @@ def modal_sum(w2, Phi, a0, a1, b, rows, f, power):
     return (1j * w[None]) ** power * (part @ (1.0 / den))
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def plant_args(doc, dof_choices, script=False):
+    """The command line of a planting script, checked: --case, --out, --plant and its sizes."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--case", required=True)
+    if script:
+        ap.add_argument("--script", help="the case's OpenSeesPy model script "
+                                         "(default: frame3d.py beside the case)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--plant", choices=("appendage", "mass", "support"), required=True)
     ap.add_argument("--node", type=int, help="the node of an appendage or a mass")
-    ap.add_argument("--dof", default="ux", choices=sorted(LABELS))
+    ap.add_argument("--dof", default="ux", choices=dof_choices)
     ap.add_argument("--kg", type=float, required=True, help="appendage, added or base mass [kg]")
     ap.add_argument("--kb", type=float, help="the supports' sway stiffness k_b [N/m]")
     ap.add_argument("--hz", type=float, help="appendage's own frequency f_s [Hz]")
@@ -138,6 +142,23 @@ def main():
         ap.error("--plant support needs --kb")
     if a.plant != "support" and a.node is None:
         ap.error(f"--plant {a.plant} needs --node")
+    return a
+
+
+def write_planted(a, here, case, f, H, truth, by):
+    """The planted case in a.out: the source case's matrix files, its data and truth."""
+    case = {**case, "name": f"{case['name']}_planted_{a.plant}",
+            "description": f"{case['name']} with a planted {a.plant} ({by})"}
+    os.makedirs(a.out, exist_ok=True)
+    m = case["model"]
+    for rel in [m["M"], m["K"], m["dof_map"], *m["stiffness_groups"].values()]:
+        os.makedirs(os.path.dirname(os.path.join(a.out, rel)) or a.out, exist_ok=True)
+        shutil.copy(os.path.join(here, rel), os.path.join(a.out, rel))
+    write_case(a.out, f, H, truth, case)
+
+
+def main():
+    a = plant_args(__doc__, sorted(LABELS))
     here, case, truth, M, K, a0, a1, dofs = read_case(a.case)
     f = np.load(os.path.join(here, case["data"]["file"]))["f"]
     ex = case["excitation"]
@@ -197,14 +218,7 @@ def main():
     out_truth = {**truth, "seed": a.seed, "planted": planted, "check_rel_error": float(err),
                  "largest_log_change": float(change.max()),
                  "points_changed_over_noise": int((change > noise).sum())}
-    case = {**case, "name": f"{case['name']}_planted_{a.plant}",
-            "description": f"{case['name']} with a planted {a.plant} (scripts/make_planted_fe.py)"}
-    os.makedirs(a.out, exist_ok=True)
-    m = case["model"]
-    for rel in [m["M"], m["K"], m["dof_map"], *m["stiffness_groups"].values()]:
-        os.makedirs(os.path.dirname(os.path.join(a.out, rel)) or a.out, exist_ok=True)
-        shutil.copy(os.path.join(here, rel), os.path.join(a.out, rel))
-    write_case(a.out, f, Hn, out_truth, case)
+    write_planted(a, here, case, f, Hn, out_truth, "scripts/make_planted_fe.py")
     where = f"at node {a.node}" if a.node is not None else f"under the supports along {a.dof}"
     print(f"wrote {a.out}: {a.plant} {where}; check {err:.1e}; largest |ln H'/H| "
           f"{change.max():.3f}, {(change > noise).sum()} of {change.size} values changed by "
