@@ -65,8 +65,8 @@ def floors(model, ground_r=None, channel_rows=()):
     coords = dict(getattr(model, "node_coords", ()) or ())
     if not coords:
         seen = dict.fromkeys(i for i in channel_rows if 0 <= i < model.n and diag[i] > 0)
-        return [Floor(f"node {model.dofs[i][0]} (DOF {model.dofs[i][1]})", (model.dofs[i][0],),
-                      (i,)) for i in seen]
+        return [Floor(f"node {model.dofs[i][0]} ({dof_name(model, model.dofs[i][1])})",
+                      (model.dofs[i][0],), (i,)) for i in seen]
     d = _direction(model, ground_r)
     rows = {nd: i for i, (nd, dof) in enumerate(model.dofs) if dof == d and diag[i] > 0}
     ndm = model.ndm or (len(next(iter(coords.values()))) if coords else 1)
@@ -125,6 +125,15 @@ def mass_vectors(model, fl):
         b[rows] = 1.0 / len(nodes)
         out.append(b)
     return out
+
+
+def dof_name(model, d):
+    """An engineer's name of a node's DOF number d (1..): ux, uy, uz, then rotations."""
+    t = translations(model)
+    if d <= t:
+        return ("ux", "uy", "uz")[d - 1]
+    rot = ("rz",) if t == 2 else ("rx", "ry", "rz")
+    return rot[d - t - 1] if d - t <= len(rot) else f"DOF {d}"
 
 
 def translations(model):

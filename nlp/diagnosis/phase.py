@@ -157,7 +157,8 @@ def _finding(channel, tau_ms, se_ms, rows, shared=False):
             "parameters": {name: tau_ms}, "uncertainty": {name: se_ms},
             "evidence": {"source": "phase", "delta_bic": bic,
                          "channels": [r["channel"] for r in rows]},
-            "statement": (f"The phase of {where} lags the model's by a time delay of "
-                          f"{tau_ms:.3g} +- {se_ms:.2g} ms (a phase error growing linearly "
+            "statement": (f"The phase of {where} {'lags' if tau_ms >= 0 else 'leads'} the "
+                          f"model's by a time delay of {abs(tau_ms):.3g} +- {se_ms:.2g} ms "
+                          "(a phase error growing linearly "
                           "with frequency, which no structural change produces; the "
                           "magnitudes are unaffected): check the acquisition timing.")}

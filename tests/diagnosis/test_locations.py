@@ -186,7 +186,7 @@ def test_without_coordinates_the_channels_are_the_locations():
     bare = replace(model, node_coords=())
     fl = floors(bare, r, (row[(21, 1)], row[(10, 1)], row[(21, 1)]))
     assert [f.rows for f in fl] == [(row[(21, 1)],), (row[(10, 1)],)]
-    assert fl[0].name == "node 21 (DOF 1)"
+    assert fl[0].name == "node 21 (ux)"
 
 
 def test_flexible_supports_reroute_the_ground_springs_through_a_base():
@@ -248,7 +248,7 @@ def test_without_coordinates_an_added_mass_acts_on_its_nodes_translations():
     on a frame whose ux and uy couple), and two channels of one node are one mass location."""
     from dataclasses import replace
     from types import SimpleNamespace
-    from nlp.diagnosis.locations import located, mass_floors, translations
+    from nlp.diagnosis.locations import dof_name, located, mass_floors, translations
     from nlp.diagnosis.units import place
     model, row, r = _frame()
     K = model.K0.toarray()
@@ -260,6 +260,8 @@ def test_without_coordinates_an_added_mass_acts_on_its_nodes_translations():
     three = replace(bare, dofs=tuple((nd, d) for nd in (1, 2) for d in range(1, 4)))
     assert (translations(bare), translations(six), translations(three)) == (2, 3, 2)
     assert translations(replace(three, ndm=3)) == 3   # a 3-D truss: ux, uy, uz
+    assert [dof_name(six, d) for d in range(1, 7)] == ["ux", "uy", "uz", "rx", "ry", "rz"]
+    assert [dof_name(three, d) for d in range(1, 4)] == ["ux", "uy", "rz"]
     chan_rows = (row[(21, 1)], row[(21, 2)], row[(10, 1)])
     fl = floors(bare, r, chan_rows)
     assert mass_floors(bare, fl) == [1, 3]
@@ -267,7 +269,7 @@ def test_without_coordinates_an_added_mass_acts_on_its_nodes_translations():
         ground_r=r, channels=[SimpleNamespace(dof=i) for i in chan_rows]))
     assert place(located(case, AddedMass(1))) == "at node 21"
     assert place(located(case, NonadjacentCoupling(1, 3))) == \
-        "between node 21 (DOF 1) and node 10 (DOF 1)"
+        "between node 21 (ux) and node 10 (ux)"
     damping = RayleighDamping(0.2, 0.0005)
     refs = fe_references(bare, damping, r, chan_rows)
     dm = 400.0

@@ -76,6 +76,13 @@ def test_one_delayed_channel_is_found_and_model_phase_error_is_not():
     fd = out["findings"][0]
     est, se = fd["parameters"]["delay_ms_a2"], fd["uncertainty"]["delay_ms_a2"]
     assert abs(est - 1e3 * tau) < 3 * se + 0.5
+    assert "lags the model's by a time delay of 12" in fd["statement"]
+    # a channel whose chain responds early (a negative delay) leads the model, by |tau|
+    H_meas = H_true * noise
+    H_meas[1] *= np.exp(2j * np.pi * f * tau)
+    (fd,) = delay_check(f, H_meas, H_model, sigma, names)["findings"]
+    assert fd["parameters"]["delay_ms_a2"] < 0
+    assert "leads the model's by a time delay of 12" in fd["statement"]
 
 
 def test_a_late_input_is_one_finding_on_the_input():
