@@ -10,7 +10,8 @@ updated parameters may have absorbed, worded as hypotheses.
 from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
 
 __all__ = ["finding_title", "finding_values", "held_words", "finding_line", "paragraph",
-           "hypotheses", "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES", "REST_HEAD"]
+           "hypotheses", "other_statements", "unconfirmed_lines", "finding_note", "REFERENCES", "REMAINING", "EXTRA_MODES", "REST_HEAD",
+           "beyond_fit"]
 
 REFERENCES = "references.json"   # beside diagnosis.json: the families' reference magnitudes
 # statements of verdict.py that the paragraph says in its own words (not repeated)
@@ -195,14 +196,28 @@ def alone_rows(d, refs=None):
     return rows
 
 
+def beyond_fit(cell, span):
+    """Does a channel x band cell of the whole-band map lie outside the fitted band?"""
+    lo, hi = cell["band_hz"]
+    return bool(span) and (lo >= span[1] * (1 - 1e-9) or hi <= span[0] * (1 + 1e-9))
+
+
 def _left_words(left):
     """Where the rest sits, in a few words: the worst channels and bands."""
     cells = (left or {}).get("cells") or []
-    if not cells:
-        return ""
-    worst = cells[:3]
-    return ("; the rest sits mostly on " + _join(
-        [f"{c['channel']} at {c['band_hz'][0]:.0f}-{c['band_hz'][1]:.0f} Hz" for c in worst]))
+    span = (left or {}).get("fitted_band_hz")
+    inside = [c for c in cells if not beyond_fit(c, span)][:3]
+    outside = [c for c in cells if beyond_fit(c, span)][:2]
+
+    def words(cs):
+        return _join([f"{c['channel']} at {c['band_hz'][0]:.0f}-{c['band_hz'][1]:.0f} Hz"
+                      for c in cs])
+
+    text = f"; the rest sits mostly on {words(inside)}" if inside else ""
+    if outside:
+        text += (", and beyond the fitted band on " if inside
+                 else "; the rest sits beyond the fitted band, mostly on ") + words(outside)
+    return text
 
 
 def _join(items):

@@ -13,9 +13,9 @@ from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.locations import is_fe
 from nlp.diagnosis.look import Conclusion
-from nlp.diagnosis.plain import finding_line, finding_title, finding_values, held_words, \
-    hypotheses, other_statements, paragraph, unconfirmed_lines, finding_note, EXTRA_MODES, \
-    REFERENCES, REFIT_STATEMENT, REMAINING, REST_HEAD
+from nlp.diagnosis.plain import beyond_fit, finding_line, finding_title, finding_values, \
+    held_words, hypotheses, other_statements, paragraph, unconfirmed_lines, finding_note, \
+    EXTRA_MODES, REFERENCES, REFIT_STATEMENT, REMAINING, REST_HEAD
 from nlp.diagnosis.plots import plot_diagnosis
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.provenance import provenance
@@ -136,10 +136,14 @@ def mismatch_left(whole):
     """Where the final model still misses the data: the whole band's channel x band cells
     above LEFT_CHI2 (worst first) and the resonances the model lacks."""
     if not whole:
-        return {"cells": [], "extra_modes": []}
+        return {"cells": [], "extra_modes": [], "fitted_band_hz": None}
+    fitted = [c["band_hz"] for c in whole["map"]["after"] if c.get("fitted_points")]
+    span = [min(b[0] for b in fitted), max(b[1] for b in fitted)] if fitted else None
+    # the misfit the fit was asked to remove comes first; beyond the fitted band the model
+    # was never fitted, so a misfit there says less about what it lacks
     cells = sorted((c for c in whole["map"]["after"] if c["chi2"] > LEFT_CHI2),
-                   key=lambda c: -c["chi2"])
-    return {"cells": cells, "extra_modes": whole["extra_modes"]}
+                   key=lambda c: (beyond_fit(c, span), -c["chi2"]))
+    return {"cells": cells, "extra_modes": whole["extra_modes"], "fitted_band_hz": span}
 
 
 def left_statement(left):
@@ -147,9 +151,11 @@ def left_statement(left):
     cells = left["cells"][:MAX_LEFT_CELLS]
     if not cells:
         return None
+    span = left.get("fitted_band_hz")
     return (REST_HEAD + "; ".join(
         f"{c['channel']} at {c['band_hz'][0]:.1f}-{c['band_hz'][1]:.1f} Hz ({c['chi2']:.3g} x "
-        "the noise)" for c in cells) + " (mean squared misfit over the noise, whole band).")
+        "the noise" + (", beyond the fitted band)" if beyond_fit(c, span) else ")")
+        for c in cells) + " (mean squared misfit over the noise, whole band).")
 
 
 

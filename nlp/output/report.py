@@ -17,7 +17,7 @@ import json
 import os
 
 from nlp import __version__
-from nlp.diagnosis.plain import (REFERENCES, alone_rows, finding_note, finding_title,
+from nlp.diagnosis.plain import (REFERENCES, alone_rows, beyond_fit, finding_note, finding_title,
                                  finding_values,
                                  hypotheses, other_statements, paragraph, unconfirmed_lines)
 from nlp.errors import InputError
@@ -339,11 +339,14 @@ def _discrepancy_section(d):
                   "data and not fitted. None is a finding.</p>",
                   _table(["frequency [Hz]", "damping ratio [%]", "seen by"],
                          [_discrepancy_row(x) for x in disc], "text")]
-    cells = ((d.get("mismatch_left") or {}).get("cells") or [])[:8]
+    left = d.get("mismatch_left") or {}
+    cells = (left.get("cells") or [])[:8]
     if cells:
+        span = left.get("fitted_band_hz")
         parts += ["<h2>Where the rest of the mismatch sits</h2>",
                   _table(["channel", "band [Hz]", "mean squared misfit / noise"],
-                         [[c["channel"], f"{c['band_hz'][0]:.1f}-{c['band_hz'][1]:.1f}",
+                         [[c["channel"], f"{c['band_hz'][0]:.1f}-{c['band_hz'][1]:.1f}"
+                           + (" (beyond the fitted band)" if beyond_fit(c, span) else ""),
                            f"{c['chi2']:.3g}"] for c in cells], "text")]
     return parts
 
