@@ -1,6 +1,7 @@
 """Figures of a diagnosis: residual maps before/after and FRF overlays."""
 
 import os
+import textwrap
 
 import numpy as np
 
@@ -45,18 +46,20 @@ def plot_diagnosis(out, case, base, z_base, improved, z_imp, before, after, fami
     H0 = base.channel_frfs(z_base, w)
     H1 = improved.channel_frfs(z_imp, w)
     for c, ch in enumerate(case.channels):
-        fig = new_figure(figsize=(7, 4))
+        fig = new_figure(figsize=(7, 4.6), layout="constrained")
         ax = fig.subplots()
         ax.semilogy(case.f[keep], np.abs(case.H[c, keep]), color="0.45", lw=3, alpha=0.5,
                     label="measured")
         ax.semilogy(case.f[keep], np.abs(H0[c]), "--", color="tab:blue", label="baseline (updated)")
         if family:
             added = ", ".join(FAMILY_WORDS.get(p, p) for p in family.split(" + "))
-            ax.semilogy(case.f[keep], np.abs(H1[c]), color="tab:red", label=f"with {added}")
+            ax.semilogy(case.f[keep], np.abs(H1[c]), color="tab:red",
+                        label=textwrap.fill(f"with {added}", 90))
         words, unit = frf_quantity(ch.output, case.target.excitation)
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel(f"|H| [{unit}]")
         ax.set_title(f"{ch.name}: {words}", fontsize=9)
-        ax.legend(fontsize=8)
+        # below the axes: a long list of added physics must not cover the curves
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
         ax.grid(alpha=0.3)
         save_figure(fig, os.path.join(out, f"frf_diagnosis_{ch.name}.png"))
