@@ -40,14 +40,18 @@ GROUPS = {"k_cols": "cols", "k_beams": "beams"}
 
 
 def _load(name):
-    sys.path.insert(0, SCRIPTS)
-    try:
-        spec = importlib.util.spec_from_file_location(name, os.path.join(SCRIPTS, f"{name}.py"))
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        return mod
-    finally:
-        sys.path.remove(SCRIPTS)
+    """A script as a module; the scripts it imports by name are loaded the same way first
+    (registered in sys.modules, so nothing edits sys.path)."""
+    if name in sys.modules:
+        return sys.modules[name]
+    if name == "make_planted_opensees":
+        _load("make_frame3d")
+        _load("make_planted_fe")
+    spec = importlib.util.spec_from_file_location(name, os.path.join(SCRIPTS, f"{name}.py"))
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
 
 
 @pytest.fixture(scope="module")
