@@ -68,9 +68,8 @@ def to_refit(scored, top):
     2 x top) and the two best locations of every family: the score test is a
     first-order look, and a large effect can rank its true location second. A sensor
     gain is refitted on every channel that scores: one parameter per channel, and under a
-    large structural misfit its first-order score is the least reliable (on the joint
-    Cristallo fit the floor-3 gain ranked third of three channels, and was never refitted,
-    although each test alone accepted it)."""
+    large structural misfit its first-order score is the least reliable
+    (docs/method/diagnosis.md, section 4)."""
     if not scored:
         return []
     best = scored[0][0]
