@@ -112,6 +112,8 @@ def planted_text(t):
 
 def compare_ref(r, ref_path):
     """Whether a control's findings repeat the reference's: 'same' or what differs."""
+    if not os.path.isfile(ref_path):
+        return "no reference diagnosis at this path on this machine: not compared"
     with open(ref_path) as fh:
         ref = json.load(fh)["findings"]
     a = {key(f): f["parameters"] for f in r["findings"]}
