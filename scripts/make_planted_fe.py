@@ -119,6 +119,23 @@ def modal_sum(w2, Phi, a0, a1, b, rows, f, power):
     return (1j * w[None]) ** power * (part @ (1.0 / den))
 
 
+def planted_frf(frame, a0, a1, b, rows, f, power, Mp, Kp, bp, appendage=None):
+    """FRFs of the planted model from modes. An appendage (p, m_s, k_s, c_s) on row p of the
+    frame (its own dashpot: not classical) by exact substructuring of the frame's all-mode
+    receptances ``frame`` = modes(M, K); any other plant from the planted model's own modes
+    (Rayleigh over it: classical)."""
+    if appendage is None:
+        return modal_sum(*modes(Mp, Kp), a0, a1, bp, rows, f, power)
+    p, m_s, k_s, c_s = appendage
+    w = 2 * np.pi * np.asarray(f)
+    ep = np.zeros(len(b))
+    ep[p] = 1.0
+    R = modal_sum(*frame, a0, a1, b, rows + [p], f, 0)
+    R_rp = modal_sum(*frame, a0, a1, ep, rows + [p], f, 0)
+    z = appendage_z(w, m_s, k_s, c_s)
+    return (1j * w[None]) ** power * attach_transfer(R[:-1], R_rp[:-1], R[-1], R_rp[-1], z)
+
+
 def plant_args(doc, dof_choices, script=False):
     """The command line of a planting script, checked: --case, --out, --plant and its sizes."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
@@ -192,18 +209,9 @@ def main():
         Kp, Cp, bp = K, a0 * Mp + a1 * K, b
         planted = {"family": "added_mass", "node": a.node, "dofs": [dofs[i][1] for i in mrows],
                    "dm": a.kg, "mass_ratio_to_dof_mass": a.kg / M[mrows[0], mrows[0]]}
-    w = 2 * np.pi * f
     frame = modes(M, K)
-    if a.plant == "appendage":
-        # the frame's receptances from all its modes (classical: Rayleigh), then the appendage
-        ep = np.zeros(n)
-        ep[p] = 1.0
-        R = modal_sum(*frame, a0, a1, b, rows + [p], f, 0)
-        R_rp = modal_sum(*frame, a0, a1, ep, rows + [p], f, 0)
-        z = appendage_z(w, a.kg, extra["k_s"], extra["c_s"])
-        H = (1j * w[None]) ** power * attach_transfer(R[:-1], R_rp[:-1], R[-1], R_rp[-1], z)
-    else:   # Rayleigh over the planted model: classical, its own modes
-        H = modal_sum(*modes(Mp, Kp), a0, a1, bp, rows, f, power)
+    H = planted_frf(frame, a0, a1, b, rows, f, power, Mp, Kp, bp,
+                    (p, a.kg, extra["k_s"], extra["c_s"]) if a.plant == "appendage" else None)
     H0 = modal_sum(*frame, a0, a1, b, rows, f, power)
     # checked against sparse direct solves of the planted model itself at a few frequencies
     check = np.array([0, f.size // 3, 2 * f.size // 3, f.size - 1])

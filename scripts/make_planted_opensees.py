@@ -32,9 +32,8 @@ import scipy.sparse as sp
 
 from make_frame3d import GROUPS as FRAME3D_GROUPS
 from make_planted_fe import (LABELS, POWER, modal_sum, modes, plant_args, plant_mass,
-                             plant_support, read_case, row, write_planted)
+                             plant_support, planted_frf, read_case, row, write_planted)
 from nlp.io.importers.opensees import assemble_script
-from nlp.testing.plant import appendage_z, attach_transfer
 from nlp.testing.sparse_sim import add_noise, frf_sparse
 
 TIE_RATIO = 1.0e4      # link stiffness over k_b: the grade beam is four orders stiffer
@@ -137,22 +136,16 @@ def main():
     b[row(dofs, int(ex["node"]), ex["dof"])] = 1.0
     rws = [row(dofs, int(c["node"]), c["dof"]) for c in chans]
     frame = modes(M, K)
-    w = 2 * np.pi * f
-    if a.plant == "appendage":
-        p = row(dofs, a.node, a.dof)
-        ep = np.zeros(n)
-        ep[p] = 1.0
-        R = modal_sum(*frame, a0, a1, b, rws + [p], f, 0)
-        R_rp = modal_sum(*frame, a0, a1, ep, rws + [p], f, 0)
-        k_s = a.kg * (2 * np.pi * a.hz) ** 2
-        z = appendage_z(w, a.kg, k_s, 2 * a.zeta * np.sqrt(k_s * a.kg))
-        H_np = (1j * w[None]) ** power * attach_transfer(R[:-1], R_rp[:-1], R[-1], R_rp[-1], z)
-    elif a.plant == "mass":
-        H_np = modal_sum(*modes(plant_mass(M, dofs, a.node, a.kg)[0], K), a0, a1, b, rws, f,
-                         power)
-    else:
+    app = None
+    if a.plant == "mass":
+        Mq, Kq, bq = plant_mass(M, dofs, a.node, a.kg)[0], K, b
+    elif a.plant == "support":
         Mq, Kq, _ = plant_support(M, K, dofs, a.dof, a.kg, a.kb)
-        H_np = modal_sum(*modes(Mq, Kq), a0, a1, np.append(b, 0.0), rws, f, power)
+        bq = np.append(b, 0.0)
+    else:
+        Mq = Kq = bq = None
+        app = (row(dofs, a.node, a.dof), a.kg, k_s, c_s)
+    H_np = planted_frf(frame, a0, a1, b, rws, f, power, Mq, Kq, bq, app)
     diff = float(np.abs(H - H_np).max() / np.abs(H_np).max())
     limit = 1e-6 if a.plant != "support" else 10.0 / TIE_RATIO
     if diff > limit:
