@@ -94,7 +94,7 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, resume=False, 
         case = assemble(cfg)
         screening = None
         if widen == 1:
-            screening = screen_stage(case, out, log)
+            screening = screen_stage(cfg, case, out, log)
             if screening["verdict"] == "setup_error":
                 return screening
             screening = screening["report"]
@@ -175,7 +175,7 @@ def conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log):
 
 
 # ------------------------------------------------------------------ stages
-def screen_stage(case, out, log):
+def screen_stage(cfg, case, out, log):
     """Screen the data before fitting (nlp.diagnosis.screen). A case that contradicts its
     data gets the verdict setup_error, written to out/diagnosis.json; otherwise
     {"verdict": None, "report": the screening} for the diagnosis to carry."""
@@ -185,7 +185,7 @@ def screen_stage(case, out, log):
         log(f"screening: {w['message']}")
     if not report["setup_errors"]:
         return {"verdict": None, "report": report}
-    result = setup_error_result(report)
+    result = dict(case=cfg.name, case_file=cfg.path, **setup_error_result(report))
     os.makedirs(out, exist_ok=True)
     write_json(os.path.join(out, "diagnosis.json"), result)
     log("verdict: setup_error (the data contradict the case; no physics is blamed)")

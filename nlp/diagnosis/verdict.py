@@ -329,7 +329,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
     statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra)
     alts = _alternatives(found, sel.alternatives)
-    result = {"verdict": verdict, "findings": findings,
+    result = {"case": cfg.name, "case_file": cfg.path, "verdict": verdict, "findings": findings,
               "alternatives": [public(r) for r in alts],
               "indistinguishable": [public(r) for r in sel.indistinct],
               "unconfirmed": [public(r) for r in unconfirmed],

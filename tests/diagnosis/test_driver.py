@@ -75,6 +75,7 @@ def test_no_missing_physics_stays_adequate(tmp_path, ordinary, levels):
     case_file = str(tmp_path / "case" / "case.yaml")
     assert prov["files"][case_file]["sha256"] == hashlib.sha256(
         open(case_file, "rb").read()).hexdigest()
+    assert saved["case_file"] == case_file and saved["case"] == load_case(case_file).name
 
 
 @pytest.mark.slow  # three diagnoses of one small case (~20-40 s each) and a Dask cluster

@@ -54,6 +54,9 @@ def test_wrong_force_floor_is_a_setup_error_and_no_physics_is_blamed(tmp_path, c
     kinds = [e["kind"] for e in res["screening"]["setup_errors"]]
     assert kinds == ["force_floor"]
     assert res["screening"]["setup_errors"][0]["data_floor"] == 1
+    # the report is titled by the case's own name, not by the output folder's
+    assert res["case"] == "cristallo_three_storey" and res["case_file"] == case
+    assert "<title>frf-nlp diagnosis: cristallo_three_storey<" in (out / "report.html").read_text()
 
 
 def _frfs(excitation, f, force_floor=1):
