@@ -7,6 +7,11 @@ imperfection drawn). nlp/testing/lab/ holds the lab (docs/benchmarks/lab_generat
 describes each imperfection and its size); it shares no code with the package.
 
     python scripts/make_lab_benchmark.py --out lab --seed SEED [--only 0-7] [--base-channel]
+    python scripts/make_lab_benchmark.py --out sweep --seed SEED --rho 0.5,1,2,5
+
+--rho writes, instead of the case list, one flexible-beam frame per beam-column stiffness
+ratio (the frame-action sweep of issue 46), numbered from 100 so that no case seed
+collides with the list's; storeys, input and signal are drawn as the list draws them.
 
 Seeds 0-99 are development seeds; an exam seed is drawn after the freeze (issue 48).
 The case list and every random draw come from --seed.
@@ -35,16 +40,29 @@ def main():
                     help="relative 1-sigma uncertainty of the design masses and stiffnesses "
                          "(as the blind benchmark; 'none' leaves it out)")
     ap.add_argument("--residual", default="log_magnitude")
+    ap.add_argument("--rho", help="comma-separated beam-column stiffness ratios: write only "
+                                  "flexible-beam frames, one per ratio")
     a = ap.parse_args()
-    all_specs = specs(np.random.default_rng(a.seed))
-    for k in case_numbers(a.only, len(all_specs)):
-        s = all_specs[k]
+    if a.rho:
+        todo = list(enumerate(rho_specs(a.seed, [float(x) for x in a.rho.split(",")]), start=100))
+    else:
+        all_specs = specs(np.random.default_rng(a.seed))
+        todo = [(k, all_specs[k]) for k in case_numbers(a.only, len(all_specs))]
+    for k, s in todo:
         name = case_name(k, s)
         t0 = time.perf_counter()
         make_case(os.path.join(a.out, name), s, a.seed * 1000 + k, base_channel=a.base_channel,
                   residual=a.residual,
                   prior=None if a.prior == "none" else [float(x) for x in a.prior.split(",")])
         print(f"wrote {a.out}/{name} ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+
+def rho_specs(seed, ratios):
+    """Flexible-beam frame specs at the given ratios, the rest drawn as specs() draws them."""
+    rng = np.random.default_rng([seed, 46])
+    return [{"category": "non_shear", "rho": r, "storeys": int(rng.integers(3, 6)),
+             "excitation": str(rng.choice(["ground", "force"])),
+             "signal": str(rng.choice(["chirp", "random"]))} for r in ratios]
 
 
 if __name__ == "__main__":
