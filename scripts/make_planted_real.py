@@ -71,24 +71,28 @@ def measured_peaks(f, A, fmin, fmax, n, min_gap=2.0):
     return sorted(float(f[k]) for k in picked)
 
 
-def draw(rng, case, peaks):
-    """The eight planted effects of one source file: list of (name, truth)."""
-    m = np.asarray(case["model"]["masses"], dtype=float)
-    p = int(case["excitation"]["floor"])
-    chans = [c["name"] for c in case["data"]["channels"]]
-    out = []
-    for k, mode in enumerate(rng.choice(len(peaks), 2, replace=False)):
-        frac, ratio, zeta = rng.uniform(0.02, 0.05), rng.uniform(0.85, 1.15), rng.uniform(0.01, 0.03)
-        m_a, f_a = frac * m.sum(), ratio * peaks[mode]
-        out.append((f"appendage{k + 1}", {
-            "family": "secondary_oscillator", "location": {"floor": p},
+def appendage_truth(rng, m, p, peak):
+    """An appendage at floor p: 2-5 % of the total nominal mass, tuned to 0.85-1.15 of the
+    measured peak [Hz], damping ratio 1-3 %."""
+    frac, ratio, zeta = rng.uniform(0.02, 0.05), rng.uniform(0.85, 1.15), rng.uniform(0.01, 0.03)
+    m_a, f_a = frac * m.sum(), ratio * peak
+    return {"family": "secondary_oscillator", "location": {"floor": p},
             "size": {"m_a_kg": m_a, "fraction_of_total_mass": frac, "mu_to_mean_floor_mass":
-                     m_a / m.mean(), "f_a_hz": f_a, "tuned_to_peak_hz": peaks[mode],
-                     "tuning_ratio": ratio, "zeta_a": zeta}}))
-    for k in range(2):
-        frac = rng.uniform(0.20, 0.40)
-        out.append((f"mass{k + 1}", {"family": "added_mass", "location": {"floor": p},
-                                     "size": {"dm_kg": frac * m[p - 1], "fraction_of_floor": frac}}))
+                     m_a / m.mean(), "f_a_hz": f_a, "tuned_to_peak_hz": peak,
+                     "tuning_ratio": ratio, "zeta_a": zeta}}
+
+
+def mass_truth(rng, m, p):
+    """An added mass of 20-40 % of the nominal mass of floor p."""
+    frac = rng.uniform(0.20, 0.40)
+    return {"family": "added_mass", "location": {"floor": p},
+            "size": {"dm_kg": frac * m[p - 1], "fraction_of_floor": frac}}
+
+
+def sensor_truths(rng, chans):
+    """Two gains (0.85-0.93 or 1.07-1.15) and two delays (1-5 ms), each pair on two
+    different channels: [(name, truth)]."""
+    out = []
     for k, ch in enumerate(rng.choice(len(chans), 2, replace=False)):
         g = rng.uniform(0.85, 0.93) if rng.random() < 0.5 else rng.uniform(1.07, 1.15)
         out.append((f"gain{k + 1}", {"family": "sensor_gain", "location": {"channel": chans[ch]},
@@ -97,6 +101,17 @@ def draw(rng, case, peaks):
         out.append((f"delay{k + 1}", {"family": "sensor_delay", "location": {"channel": chans[ch]},
                                       "size": {"delay_ms": rng.uniform(1.0, 5.0)}}))
     return out
+
+
+def draw(rng, case, peaks):
+    """The eight planted effects of one source file: list of (name, truth)."""
+    m = np.asarray(case["model"]["masses"], dtype=float)
+    p = int(case["excitation"]["floor"])
+    chans = [c["name"] for c in case["data"]["channels"]]
+    out = [(f"appendage{k + 1}", appendage_truth(rng, m, p, peaks[mode]))
+           for k, mode in enumerate(rng.choice(len(peaks), 2, replace=False))]
+    out += [(f"mass{k + 1}", mass_truth(rng, m, p)) for k in range(2)]
+    return out + sensor_truths(rng, chans)
 
 
 def plant(table, case, truth):
@@ -170,11 +185,16 @@ def make_source(out, tag, case_file, rng, seed):
         write_case(os.path.join(out, f"{tag}_{name}"), case, planted, truth,
                    keep_validation=name == "control_ref")
         names.append(f"{tag}_{name}")
-        print(f"{tag}_{name:12s} {truth['family'] or 'none':21s} {truth['location'] or ''!s:22s} "
-              + " ".join(f"{k} {v:.4g}" for k, v in (truth["size"] or {}).items()), flush=True)
+        print_case(tag, name, truth)
     check_control(os.path.join(out, f"{tag}_control", os.path.basename(case["data"]["file"])),
                   table)
     return names
+
+
+def print_case(tag, name, truth):
+    """One line: the case, its planted family, location and sizes."""
+    print(f"{tag}_{name:12s} {truth['family'] or 'none':21s} {truth['location'] or ''!s:22s} "
+          + " ".join(f"{k} {v:.4g}" for k, v in (truth["size"] or {}).items()), flush=True)
 
 
 def check_control(path, table):
@@ -194,11 +214,15 @@ def main():
     names = []
     for tag, case_file in SOURCES:
         names += make_source(a.out, tag, case_file, rng, seed)
-    with open(os.path.join(a.out, "manifest.json"), "w") as fh:
+    write_manifest(a.out, seed, names, "make_planted_real.py")
+
+
+def write_manifest(out, seed, names, script):
+    """out/manifest.json: the seed, the cases and the command that rewrites them."""
+    with open(os.path.join(out, "manifest.json"), "w") as fh:
         json.dump({"seed": seed, "cases": names,
-                   "command": f"python scripts/make_planted_real.py --out {a.out} --seed {seed}"},
-                  fh, indent=1)
-    print(f"wrote {len(names)} cases under {a.out} (seed {seed})")
+                   "command": f"python scripts/{script} --out {out} --seed {seed}"}, fh, indent=1)
+    print(f"wrote {len(names)} cases under {out} (seed {seed})")
 
 
 if __name__ == "__main__":

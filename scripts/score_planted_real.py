@@ -15,7 +15,9 @@ case treatment); a hit is a new finding with the planted family at the planted
 location (floor, or channel). A planted effect whose family and location the control
 already finds cannot be new: it is marked "in control" and its fitted value is shown.
 Controls: control_ref (validation file kept, as in the reference run) is compared
-finding by finding with the reference diagnosis (--ref-exp, --ref-t2).
+finding by finding with the reference diagnosis (--ref-exp, --ref-t2). The joint set of
+scripts/make_planted_joint.py (tag `joint`: both tests planted, diagnosed jointly) is
+scored the same way against its own control.
 """
 
 import argparse

@@ -5,3 +5,19 @@ import os
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))  # the repository
 CASES = os.path.join(ROOT, "cases")
+SCRIPTS = os.path.join(ROOT, "scripts")
+
+
+def load_script(name, needs=()):
+    """scripts/NAME.py as a module; the scripts it imports by name (needs) are loaded the
+    same way first. Each is registered in sys.modules, so nothing edits sys.path."""
+    import importlib.util
+    import sys
+    for dep in needs:
+        load_script(dep)
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, os.path.join(SCRIPTS, f"{name}.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules[name]

@@ -2,17 +2,14 @@
 OpenSees equals the same plant as edits of the model's matrices (the matrix route of
 make_planted_fe.py, itself tested against hand-written chains)."""
 
-import importlib.util
-import os
-import sys
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from support.paths import load_script
+
 pytest.importorskip("openseespy.opensees")
 
-SCRIPTS = os.path.join(os.path.dirname(__file__), "..", "..", "scripts")
 
 # one storey, one bay, 3-D: four columns (a group) and four beams (a group); bases fixed at z = 0
 FRAME = """
@@ -40,18 +37,8 @@ GROUPS = {"k_cols": "cols", "k_beams": "beams"}
 
 
 def _load(name):
-    """A script as a module; the scripts it imports by name are loaded the same way first
-    (registered in sys.modules, so nothing edits sys.path)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    if name == "make_planted_opensees":
-        _load("make_frame3d")
-        _load("make_planted_fe")
-    spec = importlib.util.spec_from_file_location(name, os.path.join(SCRIPTS, f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    needs = ("make_frame3d", "make_planted_fe") if name == "make_planted_opensees" else ()
+    return load_script(name, needs)
 
 
 @pytest.fixture(scope="module")
