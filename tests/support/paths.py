@@ -1,7 +1,9 @@
-"""Where the repository and its committed cases are (tests/data/README.md lists what the
-tests read from them)."""
+"""Where the repository, its committed cases and its scripts are (tests/data/README.md lists
+what the tests read from them), and how a test loads a script as a module."""
 
+import importlib.util
 import os
+import sys
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))  # the repository
 CASES = os.path.join(ROOT, "cases")
@@ -11,8 +13,6 @@ SCRIPTS = os.path.join(ROOT, "scripts")
 def load_script(name, needs=()):
     """scripts/NAME.py as a module; the scripts it imports by name (needs) are loaded the
     same way first. Each is registered in sys.modules, so nothing edits sys.path."""
-    import importlib.util
-    import sys
     for dep in needs:
         load_script(dep)
     if name not in sys.modules:
