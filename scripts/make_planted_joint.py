@@ -22,16 +22,14 @@ are scored against the control by scripts/score_planted_real.py (tag `joint`).
     python scripts/make_planted_joint.py --out /work/planted_joint [--seed N]
 """
 
-import argparse
 import json
 import os
-import secrets
 import shutil
 
 import numpy as np
 import yaml
 
-from make_planted_real import (LICENCE, SRC, appendage_truth, check_control, mass_truth,
+from make_planted_real import (LICENCE, SRC, appendage_truth, arguments, check_control, mass_truth,
                                measured_peaks, print_case, read_table, sensor_truths,
                                write_manifest, write_table)
 from nlp.testing.plant import (accelerance, added_mass_z, appendage_z, attach_transfer, delay,
@@ -118,13 +116,7 @@ def write_case(folder, case, files, tables, truth):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="planted_joint")
-    ap.add_argument("--seed", type=int, help="default: drawn at random and printed")
-    a = ap.parse_args()
-    seed = a.seed if a.seed is not None else secrets.randbelow(1_000_000)
-    print(f"seed {seed}", flush=True)
-    rng = np.random.default_rng(seed)
+    out, seed, rng = arguments(__doc__, "planted_joint")
     with open(os.path.join(SRC, CASE)) as fh:
         case = yaml.safe_load(fh)
     files = tests_of(case)
@@ -140,13 +132,13 @@ def main():
         truth = {"family": truth["family"], "location": truth.get("location"),
                  "size": truth.get("size"), **base}
         planted = plant(tables, case, truth) if truth["family"] else tables
-        folder = os.path.join(a.out, f"{TAG}_{name}")
+        folder = os.path.join(out, f"{TAG}_{name}")
         write_case(folder, case, files, planted, truth)
         names.append(f"{TAG}_{name}")
         print_case(TAG, name, truth)
     for name, b in files:
-        check_control(os.path.join(a.out, f"{TAG}_control", os.path.basename(name)), tables[b])
-    write_manifest(a.out, seed, names, "make_planted_joint.py")
+        check_control(os.path.join(out, f"{TAG}_control", os.path.basename(name)), tables[b])
+    write_manifest(out, seed, names, "make_planted_joint.py")
 
 
 if __name__ == "__main__":

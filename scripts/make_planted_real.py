@@ -203,18 +203,24 @@ def check_control(path, table):
         raise SystemExit(f"{path}: the control does not reproduce the source data exactly")
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="planted_real")
+def arguments(doc, default_out):
+    """--out and --seed of a planting script: (out, seed, its generator); a seed not given
+    is drawn at random and printed, so the set can be written again."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--out", default=default_out)
     ap.add_argument("--seed", type=int, help="default: drawn at random and printed")
     a = ap.parse_args()
     seed = a.seed if a.seed is not None else secrets.randbelow(1_000_000)
     print(f"seed {seed}", flush=True)
-    rng = np.random.default_rng(seed)
+    return a.out, seed, np.random.default_rng(seed)
+
+
+def main():
+    out, seed, rng = arguments(__doc__, "planted_real")
     names = []
     for tag, case_file in SOURCES:
-        names += make_source(a.out, tag, case_file, rng, seed)
-    write_manifest(a.out, seed, names, "make_planted_real.py")
+        names += make_source(out, tag, case_file, rng, seed)
+    write_manifest(out, seed, names, "make_planted_real.py")
 
 
 def write_manifest(out, seed, names, script):
