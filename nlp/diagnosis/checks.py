@@ -33,7 +33,7 @@ def phase_check(case, state, idx, log):
         return None
     Ha = state["problem"].channel_frfs(state["z"], 2 * np.pi * case.f[idx])
     out = delay_check(case.f[idx], case.H[:, idx], Ha, case.noise.sigma_phase[:, idx],
-                      [c.name for c in case.channels])
+                      [c.name for c in case.channels], [c.sensor_name for c in case.channels])
     for f in out["findings"]:
         log("  phase: " + f["statement"])
     return out
@@ -46,7 +46,9 @@ def _delay_enrichments(case, delays):
     for d in delays:
         ch = d["location"]["channel"]
         tau = next(iter(d["parameters"].values()))
-        chans = [c.name for c in case.channels] if ch == "input" else [ch]
+        # one enrichment per sensor: a jointly fitted sensor's delay acts on all its channels
+        chans = (list(dict.fromkeys(c.sensor_name for c in case.channels)) if ch == "input"
+                 else [ch])
         out += [(SensorDelay(c), [-tau if ch == "input" else tau]) for c in chans]
     return out
 

@@ -17,6 +17,12 @@ it. The evidence is the chi-square drop divided by the dispersion that remains
 
 When most channels show the same delay it belongs to the common reference
 (the input channel), and it is reported once as such.
+
+Tests of one structure fitted jointly (:mod:`nlp.case.joint`) share their sensors: a
+sensor's channels in every test are fitted with one delay, as one acquisition chain has
+one delay. The per-test delays are kept beside it; they count as the same delay when
+they differ by less than MIN_PHASE at the top of the band, the phase error a magnitude
+fit leaves anyway.
 """
 
 import math
@@ -88,8 +94,8 @@ def _significant(r):
             and r["explained"] >= EXPLAINED and abs(r["tau"]) * r["omega_max"] >= MIN_PHASE)
 
 
-def delay_check(f, H_meas, H_model, sigma_phase, names):
-    """Delays of every channel from the phase residual; findings for the significant ones.
+def delay_check(f, H_meas, H_model, sigma_phase, names, sensors=None):
+    """Delays of every sensor from the phase residual; findings for the significant ones.
 
     Parameters
     ----------
@@ -101,29 +107,53 @@ def delay_check(f, H_meas, H_model, sigma_phase, names):
         Standard deviation of the measured phase [rad].
     names : sequence of str
         Channel names.
+    sensors : sequence of str, optional
+        The physical sensor of each channel (default: each channel its own sensor). The
+        channels of one sensor share one delay.
 
     Returns
     -------
     dict
-        ``channels``: per channel {channel, delay_ms, standard_error_ms, delta_bic, phi,
-        points, significant}; ``findings``: sensor_delay findings (one per channel, or
-        one on the input when most channels share the delay).
+        ``channels``: per sensor {channel (the sensor), delay_ms, standard_error_ms,
+        delta_bic, phi, points, significant, and when the sensor has several channels
+        per_channel: each channel's own delay_ms and standard_error_ms, and consistent};
+        ``findings``: sensor_delay findings (one per sensor, or one on the input when
+        most sensors share the delay).
     """
     omega = 2 * np.pi * np.asarray(f, float)
     with np.errstate(divide="ignore", invalid="ignore"):
         D = np.angle(np.asarray(H_meas) / np.asarray(H_model))
+    sensors = list(names) if sensors is None else list(sensors)
     rows = []
-    for c, name in enumerate(names):
-        ok = np.isfinite(D[c]) & np.isfinite(sigma_phase[c]) & (sigma_phase[c] < MAX_SIGMA)
-        ok &= omega > 0
-        if ok.sum() < 10:
+    for sensor in dict.fromkeys(sensors):
+        parts = []
+        for c, name in enumerate(names):
+            ok = np.isfinite(D[c]) & np.isfinite(sigma_phase[c]) & (sigma_phase[c] < MAX_SIGMA)
+            ok &= omega > 0
+            if sensors[c] == sensor and ok.sum() >= 10:
+                parts.append((name, omega[ok], D[c, ok], sigma_phase[c, ok]))
+        if not parts:
             continue
-        r = fit_delay(omega[ok], D[c, ok], sigma_phase[c, ok])
-        rows.append({"channel": name, "delay_ms": 1e3 * r["tau"],
-                     "standard_error_ms": 1e3 * r["standard_error"],
-                     "delta_bic": r["delta_bic"], "phi": r["phi"], "points": r["points"],
-                     "explained": r["explained"], "omega_max": r["omega_max"],
-                     "significant": _significant(r)})
+        own = [_row(name, fit_delay(w, d, s)) for name, w, d, s in parts]
+        if len(parts) == 1:
+            rows += own
+            continue
+        row = _row(sensor, fit_delay(*(np.concatenate([p[k] for p in parts]) for k in (1, 2, 3))))
+        row["per_channel"] = [{k: o[k] for k in ("channel", "delay_ms", "standard_error_ms")}
+                              for o in own]
+        # a channel agrees when its own delay is within a magnitude fit's phase error of
+        # the shared one, or too uncertain to tell them apart (a test that cannot see it)
+        row["consistent"] = bool(all(
+            abs(o["delay_ms"] - row["delay_ms"]) * 1e-3 * o["omega_max"] < MIN_PHASE
+            or abs(o["delay_ms"] - row["delay_ms"]) < DELAY_Z * o["standard_error_ms"]
+            for o in own))
+        if row["consistent"] or not any(o["significant"] for o in own):
+            rows.append(row)
+        else:
+            # the tests disagree: each channel's own delay, reported as test-specific
+            for o in own:
+                o["test_specific"] = row["per_channel"]
+            rows += own
     sig = [r for r in rows if r["significant"]]
     findings = []
     if rows and len(sig) > len(rows) / 2:
@@ -148,17 +178,36 @@ def delay_check(f, H_meas, H_model, sigma_phase, names):
     return {"channels": rows, "findings": findings}
 
 
+def _row(channel, r):
+    return {"channel": channel, "delay_ms": 1e3 * r["tau"],
+            "standard_error_ms": 1e3 * r["standard_error"],
+            "delta_bic": r["delta_bic"], "phi": r["phi"], "points": r["points"],
+            "explained": r["explained"], "omega_max": r["omega_max"],
+            "significant": _significant(r)}
+
+
 def _finding(channel, tau_ms, se_ms, rows, shared=False):
     name = f"delay_ms_{channel}"
     where = ("the input (reference) channel: every output leads by the same time"
              if shared else f"channel {channel}")
     bic = float(sum(r["delta_bic"] for r in rows))
+    evidence = {"source": "phase", "delta_bic": bic, "channels": [r["channel"] for r in rows]}
+    tests, r = "", rows[0]
+    each = ", ".join(f"{p['delay_ms']:.3g} ms on {p['channel']}"
+                     for p in r.get("per_channel", r.get("test_specific", [])))
+    if not shared and "per_channel" in r:
+        evidence["per_channel"] = r["per_channel"]
+        tests = f" One delay for the sensor in every test ({each} when fitted apart)."
+    elif not shared and "test_specific" in r:
+        evidence["test_specific"] = r["test_specific"]
+        tests = (f" Test-specific: the sensor's channels in the tests fitted apart give {each},"
+                 " which differ by more than a magnitude fit's phase error, so the timing "
+                 "changed between tests.")
     return {"physics": "sensor_delay", "location": {"channel": channel},
             "parameters": {name: tau_ms}, "uncertainty": {name: se_ms},
-            "evidence": {"source": "phase", "delta_bic": bic,
-                         "channels": [r["channel"] for r in rows]},
+            "evidence": evidence,
             "statement": (f"The phase of {where} {'lags' if tau_ms >= 0 else 'leads'} the "
                           f"model's by a time delay of {abs(tau_ms):.3g} +- {se_ms:.2g} ms "
                           "(a phase error growing linearly "
                           "with frequency, which no structural change produces; the "
-                          "magnitudes are unaffected): check the acquisition timing.")}
+                          "magnitudes are unaffected): check the acquisition timing." + tests)}

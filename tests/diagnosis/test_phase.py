@@ -100,3 +100,45 @@ def test_a_late_input_is_one_finding_on_the_input():
     assert fd["location"] == {"channel": "input"}
     assert abs(fd["parameters"]["delay_ms_input"] - 1e3 * tau_in) < 3 * fd["uncertainty"][
         "delay_ms_input"] + 0.1
+
+
+def _two_tests(tau_1, tau_2, seed=11):
+    """Two tests of the model-error frame (force at floors 3 and 1), sensors a1-a3 in
+    both; sensor a2 late by tau_1 in the first test and tau_2 in the second."""
+    rng = np.random.default_rng(seed)
+    M, C, K, f = _frame()
+    M2, C2, K2 = _shear([5.0, 4.0, 3.0], [9000.0, 7000.0, 5000.0], [3.0, 2.8, 1.5])
+    H_model = np.vstack([_accelerance(M, C, K, f, d) for d in (2, 0)])
+    H_true = np.vstack([_accelerance(M2, C2, K2, f, d) for d in (2, 0)])
+    sigma = np.full(H_true.shape, 0.02)
+    H_meas = H_true * np.exp(sigma * (rng.standard_normal(H_true.shape)
+                                      + 1j * rng.standard_normal(H_true.shape)))
+    H_meas[1] *= np.exp(-2j * np.pi * f * tau_1)
+    H_meas[4] *= np.exp(-2j * np.pi * f * tau_2)
+    names = ["a1", "a2", "a3", "a1@t2", "a2@t2", "a3@t2"]
+    return f, H_meas, H_model, sigma, names, ["a1", "a2", "a3"] * 2
+
+
+def test_a_sensor_in_two_tests_gets_one_delay():
+    f, H_meas, H_model, sigma, names, sensors = _two_tests(0.012, 0.012)
+    out = delay_check(f, H_meas, H_model, sigma, names, sensors)
+    (fd,) = out["findings"]
+    assert fd["location"] == {"channel": "a2"}
+    est, se = fd["parameters"]["delay_ms_a2"], fd["uncertainty"]["delay_ms_a2"]
+    assert abs(est - 12.0) < 3 * se + 0.5
+    apart = fd["evidence"]["per_channel"]
+    assert [p["channel"] for p in apart] == ["a2", "a2@t2"]
+    # one delay from both tests' points is more precise than either test's alone
+    assert se < min(p["standard_error_ms"] for p in apart)
+    assert "One delay for the sensor in every test" in fd["statement"]
+    # fitted per channel (no sensors given), the same data give two findings
+    assert len(delay_check(f, H_meas, H_model, sigma, names)["findings"]) == 2
+
+
+def test_a_delay_in_one_test_only_is_reported_as_test_specific():
+    f, H_meas, H_model, sigma, names, sensors = _two_tests(0.012, 0.0)
+    (fd,) = delay_check(f, H_meas, H_model, sigma, names, sensors)["findings"]
+    assert fd["location"] == {"channel": "a2"}
+    assert abs(fd["parameters"]["delay_ms_a2"] - 12.0) < 3 * fd["uncertainty"]["delay_ms_a2"] + 0.5
+    assert "Test-specific" in fd["statement"]
+    assert [p["channel"] for p in fd["evidence"]["test_specific"]] == ["a2", "a2@t2"]
