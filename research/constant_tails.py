@@ -1,4 +1,4 @@
-"""False-trigger rates of four diagnosis constants under a Gaussian noise null (issue 48).
+"""False-trigger rates of five diagnosis constants under a Gaussian noise null (issue 48).
 
 Each constant compares normalised residuals z = (data - model) / sigma with a limit. Under
 the null the model is right and z is standard normal, but sigma is itself estimated: against
@@ -54,7 +54,18 @@ def adequate_held(limit=2.0, n_eff=(20, 50, 150)):
         print(f"ADEQUATE_HELD {limit:g}: s^2 {s2:.1f}: P(null shoulders read as unexplained) {row}")
 
 
+def adequate_chi2(base=1.5, sds=3.0, nu=(20, 50, 150, 500)):
+    """ADEQUATE_CHI2, ADEQUATE_SDS: the fitted windows are explained while their reduced
+    chi-square stays below base + sds sqrt(2/nu); under the null it is s^2 chi-square(nu)/nu."""
+    for s2 in S2:
+        row = ", ".join(f"nu {n}: {stats.chi2.sf(n * (base + sds * np.sqrt(2 / n)) / s2, n):.1e}"
+                        for n in nu)
+        print(f"ADEQUATE_CHI2 {base:g} + {sds:g} sqrt(2/nu): s^2 {s2:.1f}: "
+              f"P(a right model called inadequate) {row}")
+
+
 if __name__ == "__main__":
+    adequate_chi2()
     hot_z2()
     peak_z()
     determined()
