@@ -23,7 +23,10 @@ from nlp.diagnosis.families import ExtraMode
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, fit_target, noise_sigma, quasi_se
 from nlp.diagnosis.reciprocity import gain_contradiction, reciprocal_pairs
 
-__all__ = ["alone_fits", "own_modes", "start_by_name", "reciprocity_of_tests"]
+__all__ = ["alone_fits", "own_modes", "start_by_name", "reciprocity_of_tests", "between_tests",
+           "WIDER"]
+
+WIDER = 2.0   # a spread is reported when it widens a joint error by this factor or more
 
 
 def own_modes(discrepancy, label, first):
@@ -145,6 +148,49 @@ def _record(c_t, target, enr, j, r, pr, th, se, chi, phi, values, label):
             "joint": dict(zip(names, v1)), "joint_uncertainty": dict(zip(names, s1)),
             "alone": dict(zip(names, v2)), "alone_uncertainty": dict(zip(names, s2)),
             "delta_bic_alone": float(d), "agrees": bool(agrees), "reason": reason}
+
+
+def between_tests(records):
+    """How far the tests, each fitted alone, spread around every joint finding's values.
+
+    The joint fit's quasi-likelihood errors hold for noise around one right model; when
+    each test's own model error pulls its estimate elsewhere, the tests disagree by more
+    than those errors, and the spread between them is the honest measure of how well the
+    value is known. Per parameter, over the tests that see the finding (at least two): the
+    between-test variance tau^2 by the moment estimate of DerSimonian and Laird (1986),
+    tau^2 = max(0, (Q - (k - 1)) / (S1 - S2 / S1)), Q = sum w_i (y_i - y_w)^2, w_i = 1 /
+    se_i^2, S1 = sum w_i, S2 = sum w_i^2, and the random-effects standard error
+    (sum 1 / (se_i^2 + tau^2))^-1/2 of a value common to the tests.
+
+    Returns [{physics, location, parameter, tests, values, tau, standard_error, joint,
+    joint_uncertainty, wider}]; wider: the random-effects error is WIDER times the joint
+    one or more.
+    """
+    groups = {}
+    for r in records:
+        if r["reason"].startswith("this test cannot see it"):
+            continue
+        for n, v in r["alone"].items():
+            se = r["alone_uncertainty"][n]
+            if np.isfinite(v) and np.isfinite(se) and se > 0:
+                groups.setdefault((r["physics"], repr(r["location"]), n), []).append((r, v, se))
+    out = []
+    for (_, _, name), rows in groups.items():
+        if len(rows) < 2:
+            continue
+        y = np.array([v for _, v, _ in rows])
+        w = 1 / np.array([se for _, _, se in rows]) ** 2
+        q = float(np.sum(w * (y - np.sum(w * y) / np.sum(w)) ** 2))
+        tau2 = max(0.0, (q - (len(y) - 1)) / (np.sum(w) - np.sum(w ** 2) / np.sum(w)))
+        se_re = float(1 / np.sqrt(np.sum(1 / (1 / w + tau2))))
+        r0 = rows[0][0]
+        joint_se = r0["joint_uncertainty"][name]
+        out.append({"physics": r0["physics"], "location": r0["location"], "parameter": name,
+                    "tests": [r["test"] for r, _, _ in rows], "values": y.tolist(),
+                    "tau": float(np.sqrt(tau2)), "standard_error": se_re,
+                    "joint": r0["joint"][name], "joint_uncertainty": joint_se,
+                    "wider": bool(se_re >= WIDER * joint_se)})
+    return out
 
 
 def _line(rec):

@@ -134,6 +134,7 @@ def paragraph(d, refs=None):
     if disc:
         parts.append(_discrepancy_words(disc))
     parts.append(_alone_words(d.get("tests_alone") or []))
+    parts.append(_spread_words(d.get("between_tests") or [], refs))
     extra = d.get("extra_modes") or []
     if extra:
         parts.append("The data also show resonances the model does not have, at "
@@ -179,6 +180,23 @@ def _alone_words(alone):
     return head + "; fitted alone, " + "; ".join(
         f"{r['test']} {'cannot see' if 'cannot' in r['reason'] else 'disagrees on'} "
         f"{finding_title(r)}" for r in bad) + " (see the table of each test alone)."
+
+
+def _spread_words(spread, refs=None):
+    """The joint values the tests, fitted alone, spread around by more than their errors
+    (nlp.diagnosis.joint.between_tests), with the errors that spread gives them."""
+    wide = [s for s in spread if s["wider"]]
+    if not wide:
+        return ""
+    vals = ["; ".join(finding_values({"physics": s["physics"],
+                                      "parameters": {s["parameter"]: s["joint"]},
+                                      "uncertainty": {s["parameter"]: s["standard_error"]}}, refs))
+            + f" for {finding_title(s)}" for s in wide]
+    return ("Fitted alone, the tests differ from each other by more than the joint fit's "
+            "errors allow (those hold for noise about one right model); with that spread "
+            "counted (random effects, DerSimonian and Laird 1986) the joint "
+            + ("value is" if len(wide) == 1 else "values are") + " known only to: "
+            + "; ".join(vals) + ".")
 
 
 def alone_rows(d, refs=None):

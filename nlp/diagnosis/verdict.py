@@ -11,6 +11,7 @@ from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
 from nlp.diagnosis.discrepancy import beyond_band, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
+from nlp.diagnosis.joint import between_tests
 from nlp.diagnosis.locations import is_fe
 from nlp.diagnosis.look import Conclusion
 from nlp.diagnosis.plain import beyond_fit, finding_line, finding_title, finding_values, \
@@ -337,6 +338,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
                                     for r in sel.unresolved],
               "consistency": checks.consistency,
               "tests_alone": checks.tests_alone,
+              "between_tests": between_tests(checks.tests_alone),
               "absorbed": inside["absorbed"],
               "parameter_changes": inside["parameter_changes"],
               "fitted_parameters": inside["parameters"],
