@@ -13,9 +13,9 @@ from nlp.diagnosis.families import (AddedMass, BaseFlexibility, FrameAction, Hys
                                     NonadjacentCoupling, SecondaryOscillator, SensorDelay,
                                     SensorGain)
 from nlp.diagnosis.locations import case_floors, floor_count, is_fe, mass_floors, story_count
-from nlp.diagnosis.fitting import diagnosis_problem, case_references, window_bands, with_values
+from nlp.diagnosis.fitting import (diagnosis_problem, case_references, projected_columns,
+                                   window_bands, with_values)
 from nlp.frf.backends.terms import proportional
-from nlp.solve.identify import tangent_basis
 
 ABSORBED = 0.05        # fraction of a candidate's effect left after projection
 # an appendage's score is taken with a tiny oscillator: mass ratio, damping ratio
@@ -89,17 +89,7 @@ def score_at(pr, z, k):
     """Expected chi-square drop of freeing the last k variables, and the fraction of
     their effect left after projecting out the baseline Jacobian."""
     r, J = pr.residuals(z)
-    Jb, Je = J[:, :-k], J[:, -k:]
-    G = pr.constraint_jacobian()
-    if G.size:
-        # only steps that keep the total-mass anchor: the baseline moves on its constraint
-        # surface, and a candidate that adds mass is paired with the least compensating step
-        Jb = Jb @ tangent_basis(G[:, :-k], Jb.shape[1])
-        E = np.zeros((J.shape[1], k))
-        E[-k:] = np.eye(k)
-        Je = J @ (E - np.linalg.pinv(G) @ (G @ E))
-    Q, _ = np.linalg.qr(Jb)
-    Jp = Je - Q @ (Q.T @ Je)
+    Q, Je, Jp = projected_columns(pr, J, k)
     rp = r - Q @ (Q.T @ r)
     raw = np.linalg.norm(Je)
     kept = float(np.linalg.norm(Jp) / raw) if raw > 0 else 0.0

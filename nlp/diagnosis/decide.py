@@ -42,6 +42,10 @@ def decide(results, ref_chi, ref_held, nu, n_fit, n_held=0):
         r["phi"] = phi
         r["raw_delta_chi2"] = r["chi2"] - ref_chi
         r["delta_bic"] = scaled_delta_bic(r["chi2"], ref_chi, k, n_fit, phi)
+        if r.get("correlation_factor"):
+            # recorded beside the rule, not used by it yet (docs/method/diagnosis.md, 4)
+            r["delta_bic_correlated"] = scaled_delta_bic(
+                r["chi2"], ref_chi, k, n_fit, phi * r["correlation_factor"])
         ok, why = significance(r["physics"], names, [r["parameters"][n] for n in names],
                                [r["uncertainty"][n] for n in names],
                                lr=(ref_chi - r["chi2"]) / phi)

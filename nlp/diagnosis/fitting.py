@@ -20,6 +20,7 @@ from nlp.frf.backends.terms import proportional
 from nlp.solve.problem import SolverConfig, Target, UpdatingProblem
 from nlp.solve.search import scatter_search
 from nlp.diagnosis.evidence import quasi_covariance
+from nlp.solve.identify import tangent_basis
 
 
 # ---------------------------------------------------------------------- noise
@@ -181,6 +182,24 @@ def quasi_se(pr, z, free=None):
     cov, _ = quasi_covariance(J[:, free], r, max(pr.n_used - int(free.sum()) + G.shape[0], 1), G)
     T = pr.params.T[:, free]
     return np.sqrt(np.clip(np.diag(T @ cov @ T.T), 0, None)), cov
+
+
+def projected_columns(pr, J, k):
+    """(Q, Je, Jp): an orthonormal basis Q of the current model's columns of the Jacobian J
+    (on the total-mass constraint's tangent space when the case anchors its mass), the last
+    k variables' columns Je, and Je projected off Q: what a candidate can change that the
+    model cannot."""
+    Jb, Je = J[:, :-k], J[:, -k:]
+    G = pr.constraint_jacobian()
+    if G.size:
+        # only steps that keep the total-mass anchor: the baseline moves on its constraint
+        # surface, and a candidate that adds mass is paired with the least compensating step
+        Jb = Jb @ tangent_basis(G[:, :-k], Jb.shape[1])
+        E = np.zeros((J.shape[1], k))
+        E[-k:] = np.eye(k)
+        Je = J @ (E - np.linalg.pinv(G) @ (G @ E))
+    Q, _ = np.linalg.qr(Jb)
+    return Q, Je, Je - Q @ (Q.T @ Je)
 
 
 def fit_windows(cfg, case, mult, windows=False):

@@ -14,9 +14,10 @@ import numpy as np
 
 from nlp.diagnosis.evidence import BIC_ACCEPT, dispersion
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, case_references, normalised,
-                                   quasi_se, with_values)
+                                   projected_columns, quasi_se, with_values)
 from nlp.diagnosis.locations import located
 from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
+from nlp.diagnosis.spread import correlation_factor
 from nlp.output.progress import stage
 from nlp.solve.executors import Setup, make_executor
 
@@ -67,9 +68,21 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
+            "correlation_factor": _correlation(case, target, pr, res.z, k),
             "at_bound": at_bound, "on_bound": on_bound, "converged": bool(res.success),
             "z": res.z, "problem": pr,
             "split": appendage_resolution(case, pr, res.z) if e.family == "secondary_oscillator" else None}
+
+
+def _correlation(case, target, pr, z, k):
+    """The candidate's correlation factor at its optimum (nlp.diagnosis.spread): how much
+    the residuals' correlation inflates its chi-square drop. Recorded, not yet decided on
+    (docs/method/diagnosis.md, section 4)."""
+    r, J = pr.residuals(z)
+    _, _, Jp = projected_columns(pr, J, k)
+    f = target.omega / (2 * np.pi)
+    idx = np.clip(np.searchsorted(case.f, f), 0, case.f.size - 1)
+    return correlation_factor(r, Jp, idx)
 
 
 def continue_refit(r, case, held, sig_held, log):

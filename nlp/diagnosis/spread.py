@@ -20,7 +20,7 @@ inside contiguous windows, a stationary model along frequency.
 
 import numpy as np
 
-__all__ = ["effective_points", "chi2_spread"]
+__all__ = ["effective_points", "chi2_spread", "correlation_factor"]
 
 
 def _contiguous_pairs(idx, lag):
@@ -92,3 +92,65 @@ def chi2_spread(z, idx=None, max_lag=3):
     """
     n_eff = effective_points(z, idx, max_lag)
     return float(np.sqrt(2.0 / n_eff)), n_eff
+
+
+def correlation_factor(r, A, idx, max_lag=3):
+    """How much correlated residuals inflate the chi-square drop along columns A.
+
+    A quasi-likelihood treats the residuals as independent with one variance phi, so the
+    drop from fitting k new parameters is read as phi chi-square(k). With residual
+    covariance Sigma the drop along the columns A (each already projected off the other
+    parameters' columns) has expectation tr((A^T A)^-1 A^T Sigma A), so
+
+        factor = tr((A^T A)^-1 A^T Sigma A) / (k phi),    phi = mean r^2,
+
+    is 1 for independent residuals, and about 1 + 2 sum_l rho_l (not the 1 + 2 sum_l rho_l^2
+    of :func:`effective_points`) for a column smooth along frequency. Sigma is estimated
+    from the residuals as a banded (Newey-West type, rectangular kernel) covariance: all
+    residuals at one frequency with each other, and at frequencies up to max_lag bins apart
+    inside one contiguous window. The drop over phi divided by the factor is then read
+    against chi-square(k).
+
+    Parameters
+    ----------
+    r : ndarray, shape (N * n_r,)
+        Residuals, frequency-major (the n_r residuals of frequency 0 first, as the
+        problems' residual vectors are laid out).
+    A : ndarray, shape (N * n_r, k)
+        The columns of the parameters whose drop is judged, in the same layout.
+    idx : array of int, shape (N,)
+        Grid index of each frequency; bins ``lag`` apart on the grid correlate.
+    max_lag : int
+        Largest bin lag counted.
+
+    Returns
+    -------
+    float
+        The factor, at least 1 / (2 max_lag + 1) (a rectangular-kernel estimate can dip
+        below what any covariance gives); 1.0 when it cannot be formed.
+    """
+    idx = np.asarray(idx)
+    r = np.asarray(r, float).ravel()
+    A = np.asarray(A, float).reshape(r.size, -1)
+    N = idx.size
+    if N < 5 or r.size % N:
+        return 1.0
+    n_r, k = r.size // N, A.shape[1]
+    U = r.reshape(N, n_r)                       # residuals of frequency i in row i
+    B = A.reshape(N, n_r, k)
+    phi = float(np.mean(U ** 2))
+    AtA = A.T @ A
+    if phi <= 0 or not np.all(np.isfinite(AtA)) or np.linalg.matrix_rank(AtA) < k:
+        return 1.0
+    # A^T Sigma A = sum_i B_i^T G0 B_i + sum_l sum_(i, i+l) (B_i^T G_l B_(i+l) + transpose)
+    G0 = U.T @ U / N
+    S = np.einsum("iak,ab,ibm->km", B, G0, B)
+    for lag in range(1, max_lag + 1):
+        pairs = _contiguous_pairs(idx, lag)
+        if pairs.size < 5:
+            continue
+        Gl = U[pairs].T @ U[pairs + lag] / pairs.size
+        T = np.einsum("iak,ab,ibm->km", B[pairs], Gl, B[pairs + lag])
+        S += T + T.T
+    factor = float(np.trace(np.linalg.solve(AtA, S))) / (k * phi)
+    return max(factor, 1.0 / (2 * max_lag + 1))

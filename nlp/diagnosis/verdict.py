@@ -99,6 +99,9 @@ def public(r):
                      "significant": r.get("significant", True),
                      "held_out_excess": r.get("held_excess"),
                      "converged": r.get("converged", True)}
+    if r.get("correlation_factor"):
+        d["evidence"]["correlation_factor"] = r["correlation_factor"]
+        d["evidence"]["delta_bic_correlated"] = r.get("delta_bic_correlated")
     if r.get("split"):
         d["evidence"]["resolution"] = r["split"]
     d["statement"] = statement(d)

@@ -53,6 +53,13 @@ def test_joint_diagnosis_names_one_coupling_and_one_gain_for_both_tests(tmp_path
     g = found["sensor_gain"]
     assert g["location"] == {"channel": "a2"}     # the sensor, not a channel of one test
     assert abs(g["parameters"]["gain_a2"] + 0.12) < 3 * g["uncertainty"]["gain_a2"] + 0.005
+    for f in found.values():
+        # the correlation factor divides the scaled drop; the BIC price is unchanged
+        e = f["evidence"]
+        price = e["delta_bic"] - e["raw_delta_chi2"] / e["phi"]
+        assert e["correlation_factor"] > 0
+        assert math.isclose(e["delta_bic_correlated"], e["raw_delta_chi2"] / (
+            e["phi"] * e["correlation_factor"]) + price, rel_tol=1e-9, abs_tol=1e-6)
     alone = res["tests_alone"]
     assert sorted({r["test"] for r in alone}) == ["test1", "test2"]
     assert len(alone) == 4 and all(r["agrees"] or r["reason"] for r in alone)
