@@ -124,6 +124,34 @@ def delay_check(f, H_meas, H_model, sigma_phase, names, sensors=None):
     with np.errstate(divide="ignore", invalid="ignore"):
         D = np.angle(np.asarray(H_meas) / np.asarray(H_model))
     sensors = list(names) if sensors is None else list(sensors)
+    rows = _sensor_rows(omega, D, sigma_phase, names, sensors)
+    sig = [r for r in rows if r["significant"]]
+    findings = []
+    if rows and len(sig) > len(rows) / 2:
+        # one delay shared by most channels: the common reference (input) is late, so
+        # every output looks early by the same amount
+        taus = np.array([r["delay_ms"] for r in sig])
+        errs = np.array([r["standard_error_ms"] for r in sig])
+        wts = 1 / errs ** 2
+        mean = float(np.sum(wts * taus) / np.sum(wts))
+        if np.all(np.abs(taus - mean) <= SIGNIFICANCE * np.sqrt(errs ** 2 + 1 / np.sum(wts))):
+            se = float(1 / math.sqrt(np.sum(wts)))
+            findings.append(_finding("input", -mean, se, sig, shared=True))
+            return {"channels": rows, "findings": findings}
+    for r in sig:
+        # a channel's own delay stands out from the phase errors the other channels share
+        others = [o["delay_ms"] for o in rows if o is not r]
+        ref = float(np.median(others)) if others else 0.0
+        if abs(r["delay_ms"] - ref) * 1e-3 * r["omega_max"] < MIN_PHASE:
+            r["significant"] = False
+            continue
+        findings.append(_finding(r["channel"], r["delay_ms"], r["standard_error_ms"], [r]))
+    return {"channels": rows, "findings": findings}
+
+
+def _sensor_rows(omega, D, sigma_phase, names, sensors):
+    """One delay row per sensor (its channels fitted together), or one per channel, marked
+    test-specific, when a sensor's channels disagree."""
     rows = []
     for sensor in dict.fromkeys(sensors):
         parts = []
@@ -154,28 +182,7 @@ def delay_check(f, H_meas, H_model, sigma_phase, names, sensors=None):
             for o in own:
                 o["test_specific"] = row["per_channel"]
             rows += own
-    sig = [r for r in rows if r["significant"]]
-    findings = []
-    if rows and len(sig) > len(rows) / 2:
-        # one delay shared by most channels: the common reference (input) is late, so
-        # every output looks early by the same amount
-        taus = np.array([r["delay_ms"] for r in sig])
-        errs = np.array([r["standard_error_ms"] for r in sig])
-        wts = 1 / errs ** 2
-        mean = float(np.sum(wts * taus) / np.sum(wts))
-        if np.all(np.abs(taus - mean) <= SIGNIFICANCE * np.sqrt(errs ** 2 + 1 / np.sum(wts))):
-            se = float(1 / math.sqrt(np.sum(wts)))
-            findings.append(_finding("input", -mean, se, sig, shared=True))
-            return {"channels": rows, "findings": findings}
-    for r in sig:
-        # a channel's own delay stands out from the phase errors the other channels share
-        others = [o["delay_ms"] for o in rows if o is not r]
-        ref = float(np.median(others)) if others else 0.0
-        if abs(r["delay_ms"] - ref) * 1e-3 * r["omega_max"] < MIN_PHASE:
-            r["significant"] = False
-            continue
-        findings.append(_finding(r["channel"], r["delay_ms"], r["standard_error_ms"], [r]))
-    return {"channels": rows, "findings": findings}
+    return rows
 
 
 def _row(channel, r):
