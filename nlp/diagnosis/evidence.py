@@ -11,11 +11,13 @@ phi x BIC_TIE.
 
 import math
 
+import numpy as np
+
 from nlp.solve.identify import gauss_newton_covariance
 
 __all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "HELD_OUT_FLOOR", "STRONG_BIC", "held_out_ok", "SIGNIFICANCE", "AGREE", "NUISANCE",
            "LIKELIHOOD_RATIO", "ANYWHERE", "dispersion",
-           "quasi_covariance", "scaled_delta_bic", "effect_terms", "significance", "undetermined",
+           "quasi_covariance", "scaled_delta_bic", "random_effects", "effect_terms", "significance", "undetermined",
            "agree",
            "held_out_excess", "evidence", "tied"]
 
@@ -83,6 +85,22 @@ def scaled_delta_bic(chi2, chi2_ref, k, n_fit, phi):
     """BIC change of adding k parameters, chi-square difference divided by phi (Eqn: BIC =
     chi2 / phi + k ln n)."""
     return (float(chi2) - float(chi2_ref)) / phi + k * math.log(n_fit)
+
+
+def random_effects(values, errors):
+    """(tau, se): the spread between estimates of one quantity beyond their own errors, and
+    the standard error of a value common to them (DerSimonian and Laird 1986).
+
+    tau^2 = max(0, (Q - (k - 1)) / (S1 - S2 / S1)), Q = sum w_i (y_i - y_w)^2, w_i = 1 /
+    se_i^2, S1 = sum w_i, S2 = sum w_i^2; se = (sum 1 / (se_i^2 + tau^2))^-1/2. Estimates of
+    one structure or sensor from several tests differ by more than their noise when each
+    test's model error pulls them its own way; se then says how well the value is known.
+    """
+    y = np.asarray(values, float)
+    w = 1 / np.asarray(errors, float) ** 2
+    q = float(np.sum(w * (y - np.sum(w * y) / np.sum(w)) ** 2))
+    tau2 = max(0.0, (q - (y.size - 1)) / (np.sum(w) - np.sum(w ** 2) / np.sum(w)))
+    return float(np.sqrt(tau2)), float(1 / np.sqrt(np.sum(1 / (1 / w + tau2))))
 
 
 def effect_terms(family, names, values, errors):

@@ -17,7 +17,7 @@ import numpy as np
 
 from nlp.case.assemble import assemble, single_tests
 from nlp.case.joint import JOINT_SEP
-from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms,
+from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms, random_effects,
                                     scaled_delta_bic, significance)
 from nlp.diagnosis.families import ExtraMode
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, fit_target, noise_sigma, quasi_se
@@ -157,10 +157,8 @@ def between_tests(records):
     each test's own model error pulls its estimate elsewhere, the tests disagree by more
     than those errors, and the spread between them is the honest measure of how well the
     value is known. Per parameter, over the tests that see the finding (at least two): the
-    between-test variance tau^2 by the moment estimate of DerSimonian and Laird (1986),
-    tau^2 = max(0, (Q - (k - 1)) / (S1 - S2 / S1)), Q = sum w_i (y_i - y_w)^2, w_i = 1 /
-    se_i^2, S1 = sum w_i, S2 = sum w_i^2, and the random-effects standard error
-    (sum 1 / (se_i^2 + tau^2))^-1/2 of a value common to the tests.
+    between-test spread tau and the random-effects standard error of a value common to the
+    tests (:func:`nlp.diagnosis.evidence.random_effects`).
 
     Returns [{physics, location, parameter, tests, values, tau, standard_error, joint,
     joint_uncertainty, wider}]; wider: the random-effects error is WIDER times the joint
@@ -178,16 +176,13 @@ def between_tests(records):
     for (_, _, name), rows in groups.items():
         if len(rows) < 2:
             continue
-        y = np.array([v for _, v, _ in rows])
-        w = 1 / np.array([se for _, _, se in rows]) ** 2
-        q = float(np.sum(w * (y - np.sum(w * y) / np.sum(w)) ** 2))
-        tau2 = max(0.0, (q - (len(y) - 1)) / (np.sum(w) - np.sum(w ** 2) / np.sum(w)))
-        se_re = float(1 / np.sqrt(np.sum(1 / (1 / w + tau2))))
+        y = [v for _, v, _ in rows]
+        tau, se_re = random_effects(y, [se for _, _, se in rows])
         r0 = rows[0][0]
         joint_se = r0["joint_uncertainty"][name]
         out.append({"physics": r0["physics"], "location": r0["location"], "parameter": name,
-                    "tests": [r["test"] for r, _, _ in rows], "values": y.tolist(),
-                    "tau": float(np.sqrt(tau2)), "standard_error": se_re,
+                    "tests": [r["test"] for r, _, _ in rows], "values": y,
+                    "tau": tau, "standard_error": se_re,
                     "joint": r0["joint"][name], "joint_uncertainty": joint_se,
                     "wider": bool(se_re >= WIDER * joint_se)})
     return out

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from nlp.diagnosis.evidence import BIC_ACCEPT, SIGNIFICANCE
+from nlp.diagnosis.evidence import BIC_ACCEPT, SIGNIFICANCE, random_effects
 
 __all__ = ["wrap", "fit_delay", "delay_check", "TAU_MAX", "MIN_PHASE", "EXPLAINED"]
 
@@ -169,6 +169,12 @@ def _sensor_rows(omega, D, sigma_phase, names, sensors):
         row = _row(sensor, fit_delay(*(np.concatenate([p[k] for p in parts]) for k in (1, 2, 3))))
         row["per_channel"] = [{k: o[k] for k in ("channel", "delay_ms", "standard_error_ms")}
                               for o in own]
+        # the channels' own delays differ by more than their noise when each test's phase
+        # error pulls them its way: that spread bounds how well the one delay is known
+        tau, se = random_effects([o["delay_ms"] for o in own],
+                                 [o["standard_error_ms"] for o in own])
+        row["between_tests_ms"] = tau
+        row["standard_error_ms"] = max(row["standard_error_ms"], se)
         # a channel agrees when its own delay is within a magnitude fit's phase error of
         # the shared one, or too uncertain to tell them apart (a test that cannot see it)
         row["consistent"] = bool(all(

@@ -142,3 +142,17 @@ def test_a_delay_in_one_test_only_is_reported_as_test_specific():
     assert abs(fd["parameters"]["delay_ms_a2"] - 12.0) < 3 * fd["uncertainty"]["delay_ms_a2"] + 0.5
     assert "Test-specific" in fd["statement"]
     assert [p["channel"] for p in fd["evidence"]["test_specific"]] == ["a2", "a2@t2"]
+
+
+def test_a_sensor_whose_tests_differ_beyond_their_noise_gets_their_spread_as_its_error():
+    # 12.0 and 12.6 ms: the same delay within a magnitude fit's phase error (0.6 ms x 2 pi x
+    # 20 Hz = 0.08 rad < MIN_PHASE) but many noise errors apart, so the one delay is known
+    # only to about half their difference (two tests: tau^2 = d^2 / 2 - s^2)
+    f, H_meas, H_model, sigma, names, sensors = _two_tests(0.012, 0.0126)
+    (fd,) = delay_check(f, H_meas, H_model, sigma, names, sensors)["findings"]
+    apart = fd["evidence"]["per_channel"]
+    d = apart[1]["delay_ms"] - apart[0]["delay_ms"]
+    assert abs(d) > 5 * max(p["standard_error_ms"] for p in apart)
+    se = fd["uncertainty"]["delay_ms_a2"]
+    assert 0.25 * abs(d) < se < 0.75 * abs(d)
+    assert abs(fd["parameters"]["delay_ms_a2"] - 12.3) < 2 * se
