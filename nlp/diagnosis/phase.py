@@ -223,4 +223,7 @@ def _finding(channel, tau_ms, se_ms, rows, shared=False):
                           f"model's by a time delay of {abs(tau_ms):.3g} +- {se_ms:.2g} ms "
                           "(a phase error growing linearly "
                           "with frequency, which no structural change produces; the "
-                          "magnitudes are unaffected): check the acquisition timing." + tests)}
+                          "magnitudes are unaffected): check the acquisition timing, and "
+                          "whether this channel's conditioning (its anti-alias filter's order "
+                          "and corner) matches the reference's, since a filter's group delay "
+                          "reads as a delay." + tests)}
