@@ -72,7 +72,7 @@ __all__ = ["diagnose", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
 # shoulders, and searches of 600-900 s that named appendages which did not hold on the
 # other level; see docs/method/diagnosis.md).
 LEVEL_MISFIT = 10.0
-STAGES = ("screen", "points", "baseline", "discrepancy", "levels", "selection", "widen", "checks", "verdict")
+STAGES = ("screen", "points", "baseline", "levels", "discrepancy", "selection", "widen", "checks", "verdict")
 BASELINE_STARTS = 20   # least scatter-search starts of the baseline: a poor optimum there
                        # would make any added parameter look useful
 
@@ -111,11 +111,17 @@ def first_look(cfg, case, opts, widen, screening, log):
     base = baseline_stage(cfg, case, points, None, log)
     if uses_reduced(case):
         case, points, base = reduced_stage(cfg, case, points, base, log)
-    case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
                          lambda lg: nonlinearity(cfg, lg), log)
     level_bound = level_stage(base, nonlin, log)
+    if level_bound:
+        # the model discrepancy keeps linear candidates from absorbing resonances the model
+        # class lacks; a level-bound structure has no linear candidate searched, and on its
+        # records (harmonics, level mixing) the discrepancy's refits took most of a diagnosis
+        advance("diagnose", "discrepancy")
+    else:
+        case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, None, opts, log)
     if widen == 1 and not level_bound:
         wide = widen_stage(cfg, case, points, base, sel, nonlin, opts, log)

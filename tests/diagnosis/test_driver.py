@@ -113,6 +113,8 @@ def test_level_bound_case_names_the_nonlinearity_and_judges_nothing_linear(tmp_p
     (a stiffening of 0.4 across story 2: reduced chi-square near 2), which the full search
     of the same case would otherwise decorate with a hysteretic loss."""
     monkeypatch.setattr(D, "LEVEL_MISFIT", 1.0)
+    # nothing linear is searched, so no model discrepancy is fitted to protect the search
+    monkeypatch.setattr(D, "discrepancy_stage", lambda *a, **k: pytest.fail("discrepancy fitted"))
     lines = []
     folder = str(tmp_path / "case")
     make_case(folder, {"storeys": 3, "seconds": 600.0, "excitation": "ground",
