@@ -30,16 +30,18 @@ from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.case.selection import detection_form, selectable
 from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL, PEAK_Z, local_sigma
 from nlp.diagnosis.checks import whole_band
+from nlp.diagnosis.decide import where
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
 from nlp.diagnosis.families import BaseFlexibility, ExtraMode, SecondaryOscillator
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.candidates import base_candidate
 from nlp.diagnosis.locations import floor_count
 from nlp.diagnosis.refit import refit
+from nlp.diagnosis.resolution import damping_pinned
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
 
-__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "beyond_band", "EDGE_MARGIN", "fit_discrepancy", "explained_by",
+__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "resonant", "kept_modes", "beyond_band", "EDGE_MARGIN", "fit_discrepancy", "explained_by",
            "described", "subset_z", "LEVEL_HALF_WIDTH"]
 
 # The restriction "a catalogue family instead of a free modal term" is refused when its
@@ -203,6 +205,46 @@ def fit_discrepancy(case, pr0, z_base, modes, idx):
             theta[-len(vals):] = vals
             zs.append(pr.params.z_from_theta(theta))
     return pr, best_fit(pr, zs)
+
+
+def resonant(pr, z, modes):
+    """The modes whose fitted damping the data measure: not within one standard error of
+    its lower bound (nlp.diagnosis.resolution.damping_pinned, the appendage's rule). A term
+    pinned there asks for a line as sharp as the model allows: an excursion a bin or two
+    wide, not a resonance the model class lacks. pr, z: the model with every mode fitted."""
+    theta, se = pr.theta(z), quasi_se(pr, z)[0]
+    names = pr.params.names
+    out = []
+    for m in modes:
+        i = names.index(m.names[1])
+        if not damping_pinned(float(theta[i]), float(se[i]), m.spec({})["lower"][1]):
+            out.append(m)
+    return out
+
+
+def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log):
+    """The modes kept as model discrepancy: resonant (their damping measured) and explained
+    by no catalogue family as well as by a free modal term. wide: the look's points (target,
+    held-out points and their noise); pr_d, res_d: the model with every mode fitted."""
+    keep = []
+    measured = resonant(pr_d, res_d.z, modes)
+    for m in modes:
+        if not any(m is x for x in measured):
+            log(f"  {m.f0:.2f} Hz: its damping sits at the bound of its box: a line a bin or "
+                "two wide, not a resonance; not model discrepancy")
+            continue
+        alts = explained_by(case, wide.target, pr_d, res_d, modes, m, n_fit, wide.held,
+                            wide.sig_held)
+        if alts:
+            r = alts[0]["restriction"]
+            log(f"  {m.f0:.2f} Hz: {where(alts[0])} explains it as "
+                f"well as a free modal term (scaled chi-square rise {r['scaled_rise']:.1f}, "
+                f"limit {r['limit']:.1f}): left to the candidate search")
+        else:
+            keep.append(m)
+            log(f"  {m.f0:.2f} Hz: no catalogue family explains it as well as a free modal "
+                "term: model discrepancy, kept in every fit")
+    return keep
 
 
 def subset_z(pr, z, modes, keep):

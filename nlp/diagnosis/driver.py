@@ -36,8 +36,8 @@ from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same
 from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
                                       repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
-from nlp.diagnosis.decide import adequate, better_unresolved, decide, where
-from nlp.diagnosis.discrepancy import (explained_by, extra_modes_in_band, fit_discrepancy,
+from nlp.diagnosis.decide import adequate, better_unresolved, decide
+from nlp.diagnosis.discrepancy import (extra_modes_in_band, fit_discrepancy, kept_modes,
                                        refute_in_discrepancy, subset_z)
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
@@ -291,18 +291,7 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
     n_fit = wide.base.n_used
     log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
         f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
-    keep = []
-    for m in modes:
-        alts = explained_by(case, wide.target, pr_d, res_d, modes, m, n_fit, wide.held,
-                            wide.sig_held)
-        if alts:
-            log(f"  {m.f0:.2f} Hz: {where(alts[0])} explains it as well as a free modal term "
-                f"(scaled chi-square rise {alts[0]['restriction']['scaled_rise']:.1f}, limit "
-                f"{alts[0]['restriction']['limit']:.1f}): left to the candidate search")
-        else:
-            keep.append(m)
-            log(f"  {m.f0:.2f} Hz: no catalogue family explains it as well as a free modal "
-                "term: model discrepancy, kept in every fit")
+    keep = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log)
     if not keep:
         return case, points, base
     case = replace(case, discrepancy=tuple(keep))

@@ -148,3 +148,27 @@ def test_a_model_mode_moved_beyond_the_band_is_not_discrepancy(tmp_path):
     f3 = np.sqrt(eigh(K, M, eigvals_only=True))[-1] / (2 * np.pi)
     assert beyond == [], beyond
     assert any(abs(e["frequency_hz"] / f3 - 1) < 0.01 for e in extra), (f3, extra)
+
+
+def test_a_term_whose_damping_sits_at_its_bound_is_not_a_resonance(monkeypatch):
+    """resonant() keeps a modal term whose damping the data measure and drops one within
+    one standard error of the box's lower bound (5e-4), the appendage's rule; a damping the
+    data leave open (error above its value) is not pinned."""
+    import nlp.diagnosis.discrepancy as D
+
+    modes = [ExtraMode(6.0 + j, ("a1",)) for j in range(4)]
+    # (zeta, its standard error) per mode
+    fits = [(0.0005, 0.0002), (0.0008, 0.0005), (0.01, 0.001), (0.0008, 0.001)]
+    names = [n for md in modes for n in md.names]
+    theta = np.array([v for (z, _), md in zip(fits, modes) for v in (md.f0, z, 1e-3)])
+    se = np.array([v for (_, e), md in zip(fits, modes) for v in (0.01, e, 1e-4)])
+
+    class Pr:
+        params = type("P", (), {"names": names})
+
+        def theta(self, z):
+            return theta
+
+    monkeypatch.setattr(D, "quasi_se", lambda pr, z: (se, None))
+    kept = D.resonant(Pr(), None, modes)
+    assert [md.f0 for md in kept] == [8.0, 9.0]
