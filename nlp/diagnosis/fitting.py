@@ -169,14 +169,15 @@ def signed(problem, z, case, idx, sigma):
     return np.log(np.abs(Ha / Hx)) / sigma
 
 
-def quasi_se(pr, z, free=None):
+def quasi_se(pr, z, free=None, rj=None):
     """Standard errors of theta at z, inflated by the remaining misfit (quasi-likelihood).
 
     free : optional boolean mask of the decision variables the solve left free (the
     others held by its bounds carry no error).
+    rj : (r, J) at z when the caller has them already (pr.residuals(z)).
     """
     free = np.ones(pr.params.n_z, bool) if free is None else np.asarray(free, bool)
-    r, J = pr.residuals(z)
+    r, J = pr.residuals(z) if rj is None else rj
     G = pr.constraint_jacobian()
     G = G[:, free] if G.size else G
     cov, _ = quasi_covariance(J[:, free], r, max(pr.n_used - int(free.sum()) + G.shape[0], 1), G)

@@ -63,22 +63,23 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
                 if any(abs(t - b) <= 1e-5 * max(abs(sc), 1e-12) for b in (lo_, hi_) if b != 0.0)]
     at_bound = bool(on_bound)
     rh = normalised(pr, res.z, case, held, sig_held)
-    se = quasi_se(pr, res.z)[0][-k:]
+    rj = pr.residuals(res.z)
+    se = quasi_se(pr, res.z, rj=rj)[0][-k:]
     return {"physics": e.family, "location": located(case, e), "enrichment": e,
             "parameters": dict(zip(e.names, map(float, theta_e))),
             "uncertainty": dict(zip(e.names, map(float, se))),
             "score": score, "chi2": 2 * res.f, "held_out": float(np.mean(rh ** 2)),
-            "correlation_factor": _correlation(case, target, pr, res.z, k),
+            "correlation_factor": _correlation(case, target, pr, rj, k),
             "at_bound": at_bound, "on_bound": on_bound, "converged": bool(res.success),
             "z": res.z, "problem": pr,
             "split": appendage_resolution(case, pr, res.z) if e.family == "secondary_oscillator" else None}
 
 
-def _correlation(case, target, pr, z, k):
-    """The candidate's correlation factor at its optimum (nlp.diagnosis.spread): how much
-    the residuals' correlation inflates its chi-square drop. Recorded, not yet decided on
-    (docs/method/diagnosis.md, section 4)."""
-    r, J = pr.residuals(z)
+def _correlation(case, target, pr, rj, k):
+    """The candidate's correlation factor at its optimum (nlp.diagnosis.spread; rj: the
+    residuals and Jacobian there): how much the residuals' correlation inflates its
+    chi-square drop. Recorded, not yet decided on (docs/method/diagnosis.md, section 4)."""
+    r, J = rj
     _, _, Jp = projected_columns(pr, J, k)
     f = target.omega / (2 * np.pi)
     idx = np.clip(np.searchsorted(case.f, f), 0, case.f.size - 1)
