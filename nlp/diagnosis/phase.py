@@ -152,14 +152,12 @@ def delay_check(f, H_meas, H_model, sigma_phase, names, sensors=None):
 def _sensor_rows(omega, D, sigma_phase, names, sensors):
     """One delay row per sensor (its channels fitted together), or one per channel, marked
     test-specific, when a sensor's channels disagree."""
+    usable = np.isfinite(D) & np.isfinite(sigma_phase) & (sigma_phase < MAX_SIGMA) & (omega > 0)
     rows = []
     for sensor in dict.fromkeys(sensors):
-        parts = []
-        for c, name in enumerate(names):
-            ok = np.isfinite(D[c]) & np.isfinite(sigma_phase[c]) & (sigma_phase[c] < MAX_SIGMA)
-            ok &= omega > 0
-            if sensors[c] == sensor and ok.sum() >= 10:
-                parts.append((name, omega[ok], D[c, ok], sigma_phase[c, ok]))
+        parts = [(name, omega[ok], D[c, ok], sigma_phase[c, ok])
+                 for c, (name, ok) in enumerate(zip(names, usable))
+                 if sensors[c] == sensor and ok.sum() >= 10]
         if not parts:
             continue
         own = [_row(name, fit_delay(w, d, s)) for name, w, d, s in parts]
