@@ -16,6 +16,7 @@ from nlp.case.assemble import assemble
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, normalised, quasi_se, scatter_best)
 from nlp.diagnosis.harmonics import harmonic_location, story_vectors
+from nlp.diagnosis.level_kind import with_kind
 from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import modal_parameters
 from nlp.solve.search import SearchConfig
@@ -372,6 +373,8 @@ def _compare_levels(cfg, ref, fits, log):
     before, after = _other_level_held_out(cfg, ref, lv)
     finding = _nonlinear_finding(ref, lv, i, zsc, lr, scores, release, located_by, harm,
                                  (before, after))
+    # a change of mass or damping is not the family's stiffness (nlp.diagnosis.level_kind)
+    finding = with_kind(ref, lv, finding, (_phi(ref), _phi(lv)), log)
     return {"found": finding, "max_z": float(zsc[i]), "held_out": (before, after),
             "harmonics": harm, "shared_stiffness": lr}
 

@@ -7,6 +7,7 @@ saying what is missing, where, how big and how much the fit improved, and the ef
 updated parameters may have absorbed, worded as hypotheses.
 """
 
+from nlp.diagnosis.level_kind import mechanism_words
 from nlp.diagnosis.units import FAMILY_WORDS, describe, fmt_sig, place, quantities, quantity
 
 __all__ = ["finding_title", "finding_values", "held_words", "finding_line", "paragraph",
@@ -28,7 +29,9 @@ SIZE = {"base_flexibility": ("log10_kb",), "secondary_oscillator": ("mu", "f_s")
 
 def finding_title(f):
     """'a flexible base in the whole structure'."""
-    return f"{FAMILY_WORDS.get(f.get('physics'), f.get('physics', ''))} {place(f.get('location'))}"
+    mech = mechanism_words(f)
+    words = mech[0] if mech else FAMILY_WORDS.get(f.get("physics"), f.get("physics", ""))
+    return f"{words} {place(f.get('location'))}"
 
 
 def finding_values(f, refs=None):
@@ -77,6 +80,9 @@ def finding_line(f, refs=None):
 
 def _size(f, refs):
     """The quantities that say how big a finding is, with their errors."""
+    mech = mechanism_words(f)
+    if mech and mech[1]:
+        return mech[1]
     qs = quantities(f, refs)
     heads = SIZE.get(f.get("physics"))
     picked = [q for n, q in qs if heads and n.startswith(heads)] or [q for _, q in qs[:1]]

@@ -12,6 +12,7 @@ from nlp.diagnosis.discrepancy import beyond_band, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.joint import between_tests
+from nlp.diagnosis.level_kind import outside
 from nlp.diagnosis.locations import is_fe
 from nlp.diagnosis.look import Conclusion
 from nlp.diagnosis.plain import beyond_fit, finding_line, finding_title, finding_values, \
@@ -117,13 +118,20 @@ def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate, remai
     the final model's misfit above what the noise model allows (remaining) make it
     "partly_explained": what was found is named, the rest is mapped, not claimed. So does
     model discrepancy (resonances the model class cannot have): the model is incomplete
-    in a way no candidate family describes."""
+    in a way no candidate family describes. nonlin: a named level dependence, True or
+    level_kind.outside's word; a change of mass or damping ("outside") is named and placed
+    but no family describes it (partly_explained), and one whose kind the data cannot tell
+    ("undecided") makes it ambiguous."""
     if (indistinct or unconfirmed) and not confirmed and not nonlin and not inside:
         return "ambiguous"
+    # a level dependence whose mechanism is not the family's stiffness (level_kind.outside)
+    beyond = nonlin in ("outside", "undecided")
     if confirmed or inside:
-        return "partly_explained" if remaining or discrepancy else "missing_physics"
+        return "partly_explained" if remaining or discrepancy or beyond else "missing_physics"
+    if nonlin == "undecided":
+        return "ambiguous"
     if nonlin:
-        return "missing_physics"
+        return "partly_explained" if beyond else "missing_physics"
     if discrepancy:
         return "partly_explained"
     return "adequate" if adequate else "ambiguous"
@@ -311,7 +319,8 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     remaining = (bool(found) or bool(inside["findings"])) and not adequate(
         state["chi"], max(base.nu - k, 1), state["held"])
     disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
-    verdict = classify(found, unconfirmed, sel.indistinct, nonlin_found, inside["findings"],
+    verdict = classify(found, unconfirmed, sel.indistinct,
+                       nonlin_found and outside(nonlin["found"]), inside["findings"],
                        adequate(base.chi, base.nu, base.held), remaining, bool(disc))
     # resonances beyond the fitted band do not judge the fit inside it (the verdict above);
     # they are reported as model discrepancy, not as extra modes

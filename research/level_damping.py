@@ -1,0 +1,54 @@
+"""What changes with the level on two-level lab cases: a story's stiffness, a floor's mass or
+a story's damping (nlp.diagnosis.level_kind), against the generator's truth.
+
+    python research/level_damping.py CASE [CASE ...]
+
+CASE: a lab case folder with two levels (scripts/make_lab_benchmark.py, development seeds
+only). Per case: whether the levels need masses and stiffnesses of their own
+(levels.shared_stiffness), the best release of each kind (both ways round, drops summed), the
+decision, whether the released parameter rises with the level, and the truth. One JSON line
+per case goes to stderr.
+"""
+
+import json
+import os
+import sys
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+sys.path.insert(0, ROOT)
+
+from nlp.case.load import load_case  # noqa: E402
+from nlp.diagnosis.level_kind import level_kind, level_order  # noqa: E402
+from nlp.diagnosis.levels import _phi, level_fit, shared_stiffness  # noqa: E402
+from nlp.diagnosis.others import assemble_other  # noqa: E402
+
+
+def one(path):
+    cfg = load_case(os.path.join(path, "case.yaml"))
+    ref = level_fit(cfg, cfg.data.file)
+    c, _ = assemble_other(cfg, cfg.data.level_files[0], lambda *a, **k: None)
+    lv = level_fit(cfg, cfg.data.level_files[0], ref["z"], c)
+    lr = shared_stiffness(ref, lv)
+    kind = level_kind(ref, lv, _phi(ref), _phi(lv), level_order(ref, lv))
+    with open(os.path.join(path, "truth.json")) as fh:
+        truth = json.load(fh)
+    what = truth.get("outside_effect") or truth.get("effects")
+    return {"case": os.path.basename(path), "truth": what,
+            "location": truth.get("location") or [e["location"] for e in truth.get("effects", [])],
+            "excess": lr["excess"], "limit": lr["limit"], "kind": kind}
+
+
+def main():
+    for path in sys.argv[1:]:
+        r = one(path.rstrip("/"))
+        k = r["kind"]
+        best = "  ".join(f"{b['kind'][0]}{b['index'] + 1} {b['drop']:.0f} ({b['change']:+.3g})"
+                         for b in sorted(k["best"].values(), key=lambda b: -b["drop"]))
+        print(f"{r['case']:36s} excess {r['excess']:.0f}/{r['limit']:.0f}  {best}  -> "
+              f"{k['kind']} {k['index'] + 1} (margin {k['margin']:.0f}, rises {k['rises']})  "
+              f"truth {r['truth']} @ {r['location']}", flush=True)
+        print(json.dumps(r, default=str), file=sys.stderr, flush=True)
+
+
+if __name__ == "__main__":
+    main()
