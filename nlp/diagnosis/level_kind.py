@@ -151,9 +151,10 @@ def _place(kind, index):
 
 def changed(b):
     """A release's change from the reference level to the other, in its unit."""
-    unit = {"stiffness": "of its nominal stiffness", "mass": "kg", "damping": "N s/m"}[b["kind"]]
+    label, unit = {"stiffness": ("stiffness", "% of its nominal"), "mass": ("mass", "kg"),
+                   "damping": ("dashpot", "N s/m")}[b["kind"]]
     v = 100 * b["change"] if b["kind"] == "stiffness" else b["change"]
-    return f"{v:+.3g} {'%' if b['kind'] == 'stiffness' else ''}{unit}".replace("+-", "-")
+    return f"{label} change {v:+.3g} {unit}"
 
 
 def kind_statement(k):
@@ -178,13 +179,19 @@ def kind_statement(k):
     trend = {True: "rising with the level", False: "falling as the level rises",
              None: "the order of the levels is not known"}[k["rises"]]
     lead += f", {trend})."
+    friction = ("Dry friction or slip in a joint does this: the equivalent damping of dry "
+                "friction falls as the amplitude rises.")
+    spread = ("A stiffness nonlinearity under random excitation spreads its resonance over the "
+              "stiffnesses its amplitudes visit, which raises the damping with the level, and so "
+              "does slip that starts at the higher level")
     if k["kind"] == "mass":
         why = ("A part that moves with the floor at one level and slides, lifts or rattles at the "
                "other does this.")
+    elif k["rises"] is False:
+        why = friction
     else:
-        why = ("Dry friction or slip in a joint does this (the equivalent damping of dry friction "
-               "falls as the amplitude rises); a stiffness nonlinearity's spread under random "
-               "excitation can raise it.")
+        return (f"{lead} {friction if k['rises'] is None else ''} {spread}: the data of two levels "
+                "do not tell these apart, so the mechanism is not decided.").replace("  ", " ")
     return (f"{lead} {why} No family of the tool describes it: the equivalent linear model of "
             "each level is given, and the mechanism is not modelled.")
 

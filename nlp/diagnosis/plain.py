@@ -37,7 +37,9 @@ def finding_title(f):
 def finding_values(f, refs=None):
     """Each parameter of a finding in units with its relative error, then the parameters
     the data leave open."""
-    vals = [f"{q.label} {describe(q)}" for _, q in quantities(f, refs)]
+    mech = mechanism_words(f)
+    vals = [mech[1]] if mech and mech[1] else []
+    vals += [f"{q.label} {describe(q)}" for _, q in quantities(f, refs)]
     if f.get("not_determined"):
         vals.append("not determined by the data: " + ", ".join(
             f"{quantity(f.get('physics'), n, 0.0).label} ({n})" for n in f["not_determined"]))

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from nlp.diagnosis.evidence import BIC_TIE
-from nlp.diagnosis.level_kind import (INPUT, decide_kind, level_kind, level_order, location,
-                                      outside)
+from nlp.diagnosis.level_kind import (INPUT, decide_kind, kind_statement, level_kind, level_order,
+                                      location, outside)
 from nlp.diagnosis.levels import _phi, level_fit
 from nlp.diagnosis.verdict import classify
 from support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
@@ -105,3 +105,20 @@ def test_a_mechanism_outside_the_families_is_partly_explained():
     # beside a confirmed finding, a mechanism outside the families leaves part unexplained
     assert classify([{"physics": "added_mass"}], [], [], "outside", [], False) == "partly_explained"
     assert classify([{"physics": "added_mass"}], [], [], "stiffness", [], False) == "missing_physics"
+
+
+def test_the_statement_says_what_the_kind_means():
+    """Falling damping is friction and outside the families; rising damping is left open
+    between a stiffness nonlinearity's spread and slip; a mass is a part that slides."""
+    def k(kind, change, rises):
+        rows = {n: {"kind": n, "index": 1, "drop": 10.0, "change": 0.0} for n in
+                ("stiffness", "mass", "damping")}
+        rows[kind] = {"kind": kind, "index": 1, "drop": 500.0, "change": change}
+        return {"kind": kind, "index": 1, "best": rows, "rises": rises, "tied_with": []}
+    falls = kind_statement(k("damping", -4.0, False))
+    assert "dashpot change -4 N s/m" in falls and "falling as the level rises" in falls
+    assert "friction" in falls and "No family" in falls and "not decided" not in falls
+    rises = kind_statement(k("damping", 4.0, True))
+    assert "not decided" in rises and "No family" not in rises and "  " not in rises
+    mass = kind_statement(k("mass", -0.5, False))
+    assert "mass change -0.5 kg" in mass and "slides" in mass and "No family" in mass
