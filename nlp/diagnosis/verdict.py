@@ -128,10 +128,9 @@ def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate, remai
     beyond = nonlin in ("outside", "undecided")
     if confirmed or inside:
         return "partly_explained" if remaining or discrepancy or beyond else "missing_physics"
-    if nonlin == "undecided":
-        return "ambiguous"
     if nonlin:
-        return "partly_explained" if beyond else "missing_physics"
+        return {"outside": "partly_explained", "undecided": "ambiguous"}.get(nonlin,
+                                                                          "missing_physics")
     if discrepancy:
         return "partly_explained"
     return "adequate" if adequate else "ambiguous"
