@@ -237,6 +237,9 @@ MECHANISM_WORDS = {"mass": "a level-dependent mass (a part that slides or rattle
                            "describes it)",
                    "damping": "a level-dependent damping (friction or slip; no family "
                               "describes it)",
+                   "rising damping": "a level-dependent damping, rising with the level or of "
+                                     "unknown order (a stiffness nonlinearity's spread, or slip: "
+                                     "not decided)",
                    None: "a level dependence whose kind the data cannot tell (stiffness, mass "
                          "or damping)"}
 
@@ -249,4 +252,5 @@ def mechanism_words(f):
         return None
     if mech["kind"] is None:
         return MECHANISM_WORDS[None], None
-    return MECHANISM_WORDS[mech["kind"]], changed(mech["best"][mech["kind"]]) + " between the levels"
+    key = "rising damping" if outside(f) == "undecided" else mech["kind"]
+    return MECHANISM_WORDS[key], changed(mech["best"][mech["kind"]]) + " between the levels"

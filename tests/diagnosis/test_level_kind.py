@@ -9,7 +9,7 @@ import pytest
 
 from nlp.diagnosis.evidence import BIC_TIE
 from nlp.diagnosis.level_kind import (INPUT, decide_kind, kind_statement, level_kind, level_order,
-                                      location, outside)
+                                      location, mechanism_words, outside)
 from nlp.diagnosis.levels import _phi, level_fit
 from nlp.diagnosis.verdict import classify
 from support.diagnosis import F, frame_matrices, write_case_yaml, write_frf
@@ -122,3 +122,16 @@ def test_the_statement_says_what_the_kind_means():
     assert "not decided" in rises and "No family" not in rises and "  " not in rises
     mass = kind_statement(k("mass", -0.5, False))
     assert "mass change -0.5 kg" in mass and "slides" in mass and "No family" in mass
+
+
+def test_the_title_says_whether_the_mechanism_is_decided():
+    """Falling damping is titled friction, outside the families; rising damping is titled
+    not decided; a stiffness keeps the family's words."""
+    def f(kind, rises):
+        best = {kind: {"kind": kind, "change": -4.0 if rises is False else 4.0}}
+        return {"physics": "nonlinearity", "mechanism": {"kind": kind, "rises": rises,
+                                                         "best": best}}
+    falls, rises = mechanism_words(f("damping", False)), mechanism_words(f("damping", True))
+    assert "friction" in falls[0] and "not decided" not in falls[0]
+    assert "not decided" in rises[0] and rises[1] == "dashpot change +4 N s/m between the levels"
+    assert mechanism_words(f("stiffness", True)) is None
