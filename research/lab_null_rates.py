@@ -29,7 +29,7 @@ import numpy as np
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 
-from nlp.diagnosis import band, decide, evidence, loss, phase, priors  # noqa: E402
+from nlp.diagnosis import decide, driver, evidence, loss, phase, priors  # noqa: E402
 
 SETUP = ("sensor_gain", "sensor_delay")
 CANDIDATE = re.compile(r"\s+\[(\d+)\] (\w+) (\{.*?\}|\{\}): score [-\d.e+]+, dBIC ([-\d.e+]+) "
@@ -92,21 +92,34 @@ def statistics(case):
           "chi2_sds": (fb["reduced_chi2"] - decide.ADEQUATE_CHI2) / nu_sd,
           "chi2": fb["reduced_chi2"], "held": fb["held_out_chi2"]}
     rows = d.get("phase_check") or []
+    # a channel's own delay against the others' median, as phase at the top of the band
+    st["phase_own"] = max((abs(r["delay_ms"] - float(np.median([o["delay_ms"] for o in rows
+                                                                  if o is not r]))) * 1e-3
+                           * r["omega_max"] for r in rows if len(rows) > 1), default=0.0)
     st["delay_z"] = max((abs(r["delay_ms"]) / r["standard_error_ms"] for r in rows
                          if r.get("explained", 0) >= phase.EXPLAINED), default=0.0)
     lc = (d.get("loss_check") or {}).get("rows") or []
     st["loss_z"] = max((r["eta"] / r["standard_error"] for r in lc
                         if r.get("explained", 0) >= loss.EXPLAINED and r["standard_error"] > 0),
                        default=0.0)
+    st["loss_explained"] = max((r.get("explained", 0.0) for r in lc if r["standard_error"] > 0
+                                and r["eta"] > loss.LOSS_Z * r["standard_error"]), default=0.0)
+    st["level_misfit"] = max(fb["reduced_chi2"], fb["held_out_chi2"])
     st["extra_modes"] = len(d.get("extra_modes") or [])
     st["hot_spots"] = len((d.get("whole_band") or {}).get("hot_spots_hz") or [])
     dd = d.get("damping_decomposition") or {}
     z, ex, se = (dd.get(k) or [] for k in ("story_zeta_ratio_lower", "excess", "excess_se"))
     st["story_zeta"] = max(z, default=0.0)
+    st["unexplained"] = dd.get("unexplained_fraction") or 0.0
     st["damper_z"] = max((e / s for e, s in zip(ex, se) if s and s > 0), default=0.0)
     cands = candidates(os.path.join(case, "diagnose.log"))
     structural = [c for c in cands if c[0] not in SETUP]
     st["best_dbic"] = min((c[1] for c in structural), default=0.0)
+    # the held-out gate of the structural candidates that pass on BIC: their held-out
+    # chi-square over the baseline's (first round's), the least of them
+    st["held_ratio"] = min((c[2] / fb["held_out_chi2"] for c in structural
+                            if c[1] <= -evidence.BIC_ACCEPT and fb["held_out_chi2"] > 0),
+                           default=float("nan"))
     st["best_appendage_dbic"] = min((c[1] for c in cands if c[0] == "secondary_oscillator"),
                                     default=0.0)
     lc = d.get("level_comparison") or {}
@@ -125,6 +138,20 @@ RULES = [
     ("ADEQUATE_SDS", decide.ADEQUATE_SDS, "chi2_sds", ">", "baseline reduced chi-square, in its "
      "sampling SDs above ADEQUATE_CHI2 = 1.5 (beyond: the windows are not explained)"),
     ("ADEQUATE_HELD", decide.ADEQUATE_HELD, "held", ">", "baseline held-out mean z^2"),
+    ("HELD_OUT_FLOOR", evidence.HELD_OUT_FLOOR, "held", ">", "baseline held-out mean z^2 "
+     "(below the floor a candidate's held-out points need only be no worse)"),
+    ("HELD_OUT_GAIN", evidence.HELD_OUT_GAIN, "held_ratio", "<", "least held-out ratio "
+     "(candidate / baseline) of the structural candidates that pass on BIC (nan: none pass)"),
+    ("LEVEL_MISFIT", driver.LEVEL_MISFIT, "level_misfit", ">", "max(reduced chi-square, "
+     "held-out) of the baseline (beyond: no linear search on the reference level)"),
+    ("MAX_UNEXPLAINED", priors.MAX_UNEXPLAINED, "unexplained", ">", "the fitted C's share "
+     "outside a0 M plus story patterns (beyond: no damper is judged)"),
+    ("MIN_PHASE", phase.MIN_PHASE, "phase_own", ">", "largest |delay - others' median| x "
+     "omega_max over the channels, rad (a channel's own phase error at the band's top)"),
+    ("loss EXPLAINED", loss.EXPLAINED, "loss_explained", ">", "largest share of the complex "
+     "misfit a loss explains among rows beyond LOSS_Z"),
+    ("(extra modes)", 0.0, "extra_modes", ">", "modes outside the model reported (PEAK_Z, "
+     "MIN_EXCESS and the peak's shape passed)"),
     ("DELAY_Z", phase.DELAY_Z, "delay_z", ">", "largest |delay| / SE among channels whose delay "
      "explains their phase (a set-up finding)"),
     ("LOSS_Z", loss.LOSS_Z, "loss_z", ">", "largest eta / SE of the loss rows that explain enough"),

@@ -7,7 +7,10 @@ CASE: a lab case folder with two levels (scripts/make_lab_benchmark.py, developm
 only). Per case: whether the levels need masses and stiffnesses of their own
 (levels.shared_stiffness), the best release of each kind (both ways round, drops summed), the
 decision, whether the released parameter rises with the level, and the truth. One JSON line
-per case goes to stderr.
+per case goes to stderr. Beside them, the evidence a materiality rule could use: the modal
+frequency shifts between the levels, the share of the levels' whole difference (both ways
+round, every parameter held) that the best one-parameter release explains, and the
+out-of-band harmonics (z of the power above the noise, the share of the best story).
 """
 
 import json
@@ -19,7 +22,7 @@ sys.path.insert(0, ROOT)
 
 from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.level_kind import level_kind, level_order  # noqa: E402
-from nlp.diagnosis.levels import _phi, level_fit, shared_stiffness  # noqa: E402
+from nlp.diagnosis.levels import _harmonics, _own_chi2, _phi, level_fit, shared_stiffness  # noqa: E402
 from nlp.diagnosis.others import assemble_other  # noqa: E402
 
 
@@ -33,9 +36,19 @@ def one(path):
     with open(os.path.join(path, "truth.json")) as fh:
         truth = json.load(fh)
     what = truth.get("outside_effect") or truth.get("effects")
+    harm = _harmonics(cfg, [ref, lv]) or {}
+    # the levels' difference: each level's data at the other's optimum above its own optimum
+    total = (kind["held_chi2"]["other"] - _own_chi2(lv) / _phi(lv)
+             + kind["held_chi2"]["reference"] - _own_chi2(ref) / _phi(ref))
+    top = max(b["drop"] for b in kind["best"].values())
     return {"case": os.path.basename(path), "truth": what,
             "location": truth.get("location") or [e["location"] for e in truth.get("effects", [])],
-            "excess": lr["excess"], "limit": lr["limit"], "kind": kind}
+            "excess": lr["excess"], "limit": lr["limit"], "kind": kind,
+            "shift_percent": [float(100 * (b / a - 1)) for a, b in zip(ref["f"], lv["f"])],
+            "held_total": total, "best_share": top / total if total > 0 else float("nan"),
+            "harmonics_z": harm.get("z_excess"), "harmonics_best": harm.get("story_index"),
+            "harmonics_share": (max(harm["share"]) if harm.get("share") is not None
+                                and len(harm["share"]) else None)}
 
 
 def main():
@@ -47,6 +60,12 @@ def main():
         print(f"{r['case']:36s} excess {r['excess']:.0f}/{r['limit']:.0f}  {best}  -> "
               f"{k['kind']} {k['index'] + 1} (margin {k['margin']:.0f}, rises {k['rises']})  "
               f"truth {r['truth']} @ {r['location']}", flush=True)
+        hz = r["harmonics_z"]
+        print(f"{'':36s} shifts {', '.join(f'{x:+.2f}' for x in r['shift_percent'])} %; best "
+              f"release explains {100 * r['best_share']:.0f} % of {r['held_total']:.0f}; "
+              f"harmonics z {'-' if hz is None else f'{hz:.1f}'} (story "
+              f"{r['harmonics_best'] if r['harmonics_best'] is None else r['harmonics_best'] + 1}, "
+              f"share {r['harmonics_share']})", flush=True)
         print(json.dumps(r, default=str), file=sys.stderr, flush=True)
 
 
