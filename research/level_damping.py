@@ -22,7 +22,8 @@ sys.path.insert(0, ROOT)
 
 from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.level_kind import level_kind, level_order  # noqa: E402
-from nlp.diagnosis.levels import _harmonics, _own_chi2, _phi, level_fit, shared_stiffness  # noqa: E402
+from nlp.diagnosis.levels import (_harmonics, _own_chi2, _phi, level_fit, level_location,  # noqa: E402
+                                release_location, released_story, shared_stiffness)
 from nlp.diagnosis.others import assemble_other  # noqa: E402
 
 
@@ -37,6 +38,8 @@ def one(path):
         truth = json.load(fh)
     what = truth.get("outside_effect") or truth.get("effects")
     harm = _harmonics(cfg, [ref, lv]) or {}
+    score_story, _ = level_location(ref, lv)
+    freed = released_story(release_location(ref, lv, lr))
     # the levels' difference: each level's data at the other's optimum above its own optimum
     total = (kind["held_chi2"]["other"] - _own_chi2(lv) / _phi(lv)
              + kind["held_chi2"]["reference"] - _own_chi2(ref) / _phi(ref))
@@ -46,6 +49,7 @@ def one(path):
             "excess": lr["excess"], "limit": lr["limit"], "kind": kind,
             "shift_percent": [float(100 * (b / a - 1)) for a, b in zip(ref["f"], lv["f"])],
             "held_total": total, "best_share": top / total if total > 0 else float("nan"),
+            "score_story": score_story, "freed_story": freed,
             "harmonics_z": harm.get("z_excess"), "harmonics_best": harm.get("story_index"),
             "harmonics_share": (max(harm["share"]) if harm.get("share") is not None
                                 and len(harm["share"]) else None)}
@@ -65,7 +69,9 @@ def main():
               f"release explains {100 * r['best_share']:.0f} % of {r['held_total']:.0f}; "
               f"harmonics z {'-' if hz is None else f'{hz:.1f}'} (story "
               f"{r['harmonics_best'] if r['harmonics_best'] is None else r['harmonics_best'] + 1}, "
-              f"share {r['harmonics_share']})", flush=True)
+              f"share {r['harmonics_share']}); score test story {r['score_story'] + 1}, "
+              f"freed story {r['freed_story'] if r['freed_story'] is None else r['freed_story'] + 1}",
+              flush=True)
         print(json.dumps(r, default=str), file=sys.stderr, flush=True)
 
 
