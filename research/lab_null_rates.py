@@ -28,8 +28,10 @@ import numpy as np
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
 
 from nlp.diagnosis import decide, driver, evidence, loss, phase, priors  # noqa: E402
+import score_lab  # noqa: E402
 
 SETUP = ("sensor_gain", "sensor_delay")
 CANDIDATE = re.compile(r"\s+\[(\d+)\] (\w+) (\{.*?\}|\{\}): score [-\d.e+]+, dBIC ([-\d.e+]+) "
@@ -130,6 +132,10 @@ def statistics(case):
     st["structural_findings"] = [f["physics"] for f in d["findings"] if f["physics"] not in SETUP]
     st["setup_findings"] = [f["physics"] for f in d["findings"] if f["physics"] in SETUP]
     st["verdict"] = d["verdict"]
+    # the lab scoring's own rule (scripts/score_lab.py): an `ambiguous` verdict without a
+    # finding is wrong on a null too
+    with open(os.path.join(case, "truth.json")) as fh:
+        st["ok"] = bool(score_lab.judge(json.load(fh), d)[1])
     return st
 
 
@@ -187,6 +193,10 @@ def table(out):
     fa = [s for s in stats if s["structural_findings"]]
     lo, hi = wilson(len(fa), n)
     print(f"false alarms (a structural finding): {len(fa)}/{n} ({100 * lo:.0f}-{100 * hi:.0f} %)")
+    wrong = [s for s in stats if not s["ok"]]
+    lo, hi = wilson(len(wrong), n)
+    print(f"wrong by the lab scoring (scripts/score_lab.py): {len(wrong)}/{n} "
+          f"({100 * lo:.0f}-{100 * hi:.0f} %)")
     for s in stats:
         print(f"  {s['case']:34s} {s['verdict']:16s} chi2 {s['chi2']:7.2f} held {s['held']:6.2f}  "
               f"structural {s['structural_findings']}  set-up {s['setup_findings']}")
