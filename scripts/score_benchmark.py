@@ -72,7 +72,8 @@ def _table(rows):
               f"{sum(r['location_ok'] for r in rs):12d}")
     eff = [r for r in rows if r["family"] != "none"]
     null = [r for r in rows if r["family"] == "none"]
-    acc = [r for r in eff if r["verdict"] == "missing_physics" and r["family_ok"]]
+    # a planted gain or delay alone is a set-up error (nlp.diagnosis.verdict.classify)
+    acc = [r for r in eff if r["verdict"] in ("missing_physics", "setup_error") and r["family_ok"]]
     print(f"\ncorrect family and location: {sum(r['location_ok'] for r in eff)}/{len(eff)} effect cases"
           f" ({100 * np.mean([r['location_ok'] for r in eff]):.0f} %)" if eff else "")
     print(f"false alarms (null and ordinary-change cases not 'adequate'): "

@@ -19,7 +19,8 @@ stages' data (:mod:`nlp.diagnosis.look`):
    (:mod:`.widen`);
 6. checks: effects inside the model class (:mod:`.inside`), phase, loss and the whole
    band (:mod:`.checks`);
-7. verdict: adequate, missing_physics, or ambiguous, with the measurement that would
+7. verdict: adequate, setup_error (only a channel's gain or delay found), missing_physics,
+   partly_explained or ambiguous, with the measurement that would
    separate the candidates (:mod:`.verdict`).
 """
 

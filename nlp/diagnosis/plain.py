@@ -112,9 +112,16 @@ def paragraph(d, refs=None):
     """What is missing, where, how big, and how much the fit improved (diagnosis.json d)."""
     verdict, found, fit = d.get("verdict"), d.get("findings") or [], d.get("fit") or {}
     b = fit.get("before") or {}
-    if verdict == "setup_error":
+    if verdict == "setup_error" and not found:
         return ("The data contradict the case's set-up (see below); no physics is blamed "
                 "until the case or the data are corrected.")
+    if verdict == "setup_error":
+        what = [f"{finding_title(f)}, {_size(f, refs)}" for f in found]
+        return ("The structural model is adequate; the test set-up is not as the case file "
+                "says: " + "; and ".join(what) + ". With " + ("this" if len(found) == 1 else
+                                                              "these") + " corrected, "
+                + _lower(_fit_words(fit)) + " Correct each channel's calibration or timing in "
+                "the case, not the model.")
     if verdict == "adequate":
         sd = b.get("reduced_chi2_sd")
         return (f"Nothing is missing that the candidate families describe: the updated model "

@@ -1,4 +1,4 @@
-"""The verdict of a look: adequate, missing_physics, partly_explained or ambiguous.
+"""The verdict of a look: adequate, setup_error, missing_physics, partly_explained or ambiguous.
 
 The verdict and diagnosis.json are built from the stages' data (nlp.diagnosis.look);
 ambiguous verdicts name the measurement that would separate the candidates (SUGGESTIONS).
@@ -109,6 +109,15 @@ def public(r):
     return d
 
 
+# families that describe the test set-up (a channel's calibration or timing), not the structure
+SETUP_FAMILIES = ("sensor_gain", "sensor_delay")
+
+
+def setup_only(found):
+    """Whether every finding (at least one) is of the set-up, none of the structure."""
+    return bool(found) and all(f["physics"] in SETUP_FAMILIES for f in found)
+
+
 def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate, remaining=False,
              discrepancy=False):
     """The verdict. Candidates that cannot be told apart, or findings that do not hold
@@ -121,13 +130,19 @@ def classify(confirmed, unconfirmed, indistinct, nonlin, inside, adequate, remai
     in a way no candidate family describes. nonlin: a named level dependence, True or
     level_kind.outside's word; a change of mass or damping ("outside") is named and placed
     but no family describes it (partly_explained), and one whose kind the data cannot tell
-    ("undecided") makes it ambiguous."""
+    ("undecided") makes it ambiguous. Findings of the set-up only (a channel's gain or
+    delay) that leave nothing else make it "setup_error": the structural model is right and
+    the case's sensors are not as it says, which an engineer fixes in the case, not in the
+    model."""
     if (indistinct or unconfirmed) and not confirmed and not nonlin and not inside:
         return "ambiguous"
     # a level dependence whose mechanism is not the family's stiffness (level_kind.outside)
     beyond = nonlin in ("outside", "undecided")
     if confirmed or inside:
-        return "partly_explained" if remaining or discrepancy or beyond else "missing_physics"
+        if remaining or discrepancy or beyond:
+            return "partly_explained"
+        return "setup_error" if not nonlin and setup_only(list(confirmed) + list(inside)) \
+            else "missing_physics"
     if nonlin:
         return {"outside": "partly_explained", "undecided": "ambiguous"}.get(nonlin,
                                                                           "missing_physics")
