@@ -10,7 +10,9 @@ decision, whether the released parameter rises with the level, and the truth. On
 per case goes to stderr. Beside them, the evidence a materiality rule could use: the modal
 frequency shifts between the levels, the share of the levels' whole difference (both ways
 round, every parameter held) that the best one-parameter release explains, and the
-out-of-band harmonics (z of the power above the noise, the share of the best story).
+out-of-band harmonics (z of the power above the noise, the share of the best story), and the
+pattern: a change of every story by one factor (the joints' signature) and the best story
+released on top of it (one element's).
 """
 
 import json
@@ -21,10 +23,36 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 
 from nlp.case.load import load_case  # noqa: E402
-from nlp.diagnosis.level_kind import level_kind, level_order  # noqa: E402
+from nlp.diagnosis.level_kind import (CommonStiffness, _held, level_kind, level_order,  # noqa: E402
+                                      release)
 from nlp.diagnosis.levels import (_harmonics, _own_chi2, _phi, level_fit, level_location,  # noqa: E402
                                 release_location, released_story, shared_stiffness)
 from nlp.diagnosis.others import assemble_other  # noqa: E402
+
+
+def pattern(ref, lv):
+    """Drops (both ways round, scaled as level_kind's) of the common change, and of the best
+    story released on top of it: the story's departure from the shared change."""
+    phi_r, phi_l = _phi(ref), _phi(lv)
+    held = _held(ref, lv) / phi_l + _held(lv, ref) / phi_r
+
+    sa, _, _ = ref["problem"].params.slices()
+    th_r, th_l = (f["problem"].theta(f["z"]) for f in (ref, lv))
+
+    def drop(kind, i):
+        co, vo, oko = release(ref, lv, kind, i, (CommonStiffness(),))
+        cr, vr, okr = release(lv, ref, kind, i, (CommonStiffness(),))
+        if kind == "stiffness":   # relative to the held level's theta, as level_kind
+            vo, vr = vo - th_r[sa.start + i], vr - th_l[sa.start + i]
+        return held - co / phi_l - cr / phi_r, 0.5 * (vo - vr), oko and okr
+
+    g_drop, g, g_ok = drop(None, 0)
+    rows = [drop("stiffness", i) + (i,) for i in range(ref["case"].model.n)]
+    best = max(rows, key=lambda r: r[0])
+    return {"common_drop": g_drop, "common_change": g, "common_converged": g_ok,
+            "departure_story": best[3], "departure_drop": best[0] - g_drop,
+            "departure_change": best[1],
+            "departure_converged": best[2]}
 
 
 def one(path):
@@ -44,12 +72,13 @@ def one(path):
     total = (kind["held_chi2"]["other"] - _own_chi2(lv) / _phi(lv)
              + kind["held_chi2"]["reference"] - _own_chi2(ref) / _phi(ref))
     top = max(b["drop"] for b in kind["best"].values())
+    pat = pattern(ref, lv)
     return {"case": os.path.basename(path), "truth": what,
             "location": truth.get("location") or [e["location"] for e in truth.get("effects", [])],
             "excess": lr["excess"], "limit": lr["limit"], "kind": kind,
             "shift_percent": [float(100 * (b / a - 1)) for a, b in zip(ref["f"], lv["f"])],
             "held_total": total, "best_share": top / total if total > 0 else float("nan"),
-            "score_story": score_story, "freed_story": freed,
+            "pattern": pat, "score_story": score_story, "freed_story": freed,
             "harmonics_z": harm.get("z_excess"), "harmonics_best": harm.get("story_index"),
             "harmonics_share": (max(harm["share"]) if harm.get("share") is not None
                                 and len(harm["share"]) else None)}
@@ -72,6 +101,11 @@ def main():
               f"share {r['harmonics_share']}); score test story {r['score_story'] + 1}, "
               f"freed story {r['freed_story'] if r['freed_story'] is None else r['freed_story'] + 1}",
               flush=True)
+        p = r["pattern"]
+        print(f"{'':36s} common change {100 * p['common_change']:+.2f} % explains "
+              f"{100 * p['common_drop'] / r['held_total']:.0f} %; story {p['departure_story'] + 1} "
+              f"on top of it ({100 * p['departure_change']:+.2f} %) drops {p['departure_drop']:.0f} more "
+              f"(converged {p['common_converged']} {p['departure_converged']})", flush=True)
         print(json.dumps(r, default=str), file=sys.stderr, flush=True)
 
 

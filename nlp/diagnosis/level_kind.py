@@ -19,6 +19,7 @@ places of the model there.
 
 from dataclasses import dataclass, replace
 
+import casadi as ca
 import numpy as np
 
 from nlp.diagnosis.evidence import BIC_TIE
@@ -41,6 +42,26 @@ class StoryDashpotChange(LocalDamper):
                 "null": [0.0]}
 
 
+@dataclass(frozen=True)
+class CommonStiffness:
+    """Every story's stiffness times (1 + g) [-]: a change shared by all stories, as slightly
+    nonlinear joints in every story give when they all soften alike. Released beside one
+    story (release's ``extra``), that story's change is its departure from the shared one."""
+
+    family = "common_stiffness"
+    names = ("g",)
+    location = {}
+
+    def spec(self, ref):
+        return {"initial": [0.0], "lower": [-0.5], "upper": [0.5], "scale": [0.01], "null": [0.0]}
+
+    def apply(self, sys, th, ref):
+        n = ref["K_parts"][0].shape[0]
+        K = ca.SX(sys["K"])
+        K[:n, :n] = (1 + th[0]) * K[:n, :n]
+        return {**sys, "K": K}
+
+
 def applies(ref):
     """Whether the kinds can be told on this model: a shear frame, a stiffness per story."""
     model = ref["case"].model
@@ -48,12 +69,13 @@ def applies(ref):
     return not is_fe(model) and sa.stop - sa.start == model.n
 
 
-def release(src, dst, kind, index):
+def release(src, dst, kind, index, extra=()):
     """dst's data at src's optimum (every parameter held, damping too), one released.
 
-    kind: "stiffness" (story index+1's theta), "mass" (an added mass at floor index+1) or
-    "damping" (a dashpot change across story index+1). Returns the refit's chi-square, the
-    released value (theta, kg, N s/m) and whether it converged.
+    kind: "stiffness" (story index+1's theta), "mass" (an added mass at floor index+1),
+    "damping" (a dashpot change across story index+1) or None (only ``extra``). extra:
+    enrichments released beside it. Returns the refit's chi-square, the released value
+    (theta, kg, N s/m; extra's first parameter when kind is None) and whether it converged.
     """
     pr_d = dst["problem"]
     sa, _, _ = pr_d.params.slices()
@@ -62,8 +84,8 @@ def release(src, dst, kind, index):
     params = replace(pr_d.params, params=tuple(
         p if (p.fixed or i == free) else replace(p, fixed=True, initial=float(theta_s[i]))
         for i, p in enumerate(pr_d.params.params)))
-    enr = {"stiffness": (), "mass": (AddedMass(index + 1),),
-           "damping": (StoryDashpotChange(index + 1, index),)}[kind]
+    enr = {"stiffness": (), "mass": (AddedMass(index + 1),), None: (),
+           "damping": (StoryDashpotChange(index + 1, index),)}[kind] + tuple(extra)
     c = dst["case"]
     # one free parameter: the SX graph evaluated as it is costs 0.2-0.3 s a refit, less
     # than compiling it
@@ -73,7 +95,9 @@ def release(src, dst, kind, index):
     start[:theta_s.size] = theta_s
     res = best_fit(pr, [pr.params.z_from_theta(start)])
     th = pr.theta(res.z)
-    return float(2 * res.f), float(th[free] if free is not None else th[-1]), bool(res.success)
+    # the kind's own enrichment comes first after the case's parameters, then extra's
+    return (float(2 * res.f), float(th[free] if free is not None else th[theta_s.size]),
+            bool(res.success))
 
 
 def _held(src, dst):
