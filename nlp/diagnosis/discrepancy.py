@@ -247,6 +247,20 @@ def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log):
     return keep
 
 
+def kept_discrepancy(case, wide, z_base, modes, log):
+    """(indices of the modes kept as model discrepancy, the optimum of the model with
+    them, or None) on the look's points with windows at the modes (wide), from the
+    baseline's optimum z_base."""
+    b0 = best_fit(wide.base, [z_base])
+    pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
+    n_fit = wide.base.n_used
+    log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
+        f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
+    keep = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log)
+    kept = [i for i, m in enumerate(modes) if any(m is k for k in keep)]
+    return kept, (subset_z(pr_d, res_d.z, modes, keep) if keep else None)
+
+
 def subset_z(pr, z, modes, keep):
     """Decision vector of the model with only the modes in keep (z: with all modes)."""
     n_base = pr.params.n_z - sum(len(m.names) for m in modes)
@@ -258,10 +272,12 @@ def subset_z(pr, z, modes, keep):
     return np.concatenate(parts)
 
 
-def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held):
+def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held, box=False):
     """The catalogue refit (appendage at a floor, flexible base) that explains the resonance
     of mode e as well as its free modal term (module docstring), best first; [] when none.
-    pr_d, res_d: the model with every mode fitted."""
+    pr_d, res_d: the model with every mode fitted. The appendages start tuned to e alone
+    (box=True adds refit's two starts spread over their box, which look elsewhere: a
+    quarter of an hour on a torsional frame with six such resonances)."""
     others = tuple(m for m in modes if m is not e)
     c_e = replace(case, discrepancy=others)
     z_cur = subset_z(pr_d, res_d.z, modes, others)
@@ -271,7 +287,7 @@ def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held):
              for p in range(1, floor_count(case) + 1)] + ([BaseFlexibility()] if base_candidate(case) else [])
     out = []
     for cand in cands:
-        r = refit(c_e, target, [], z_cur, cand, 0.0, n_fit, held, sig_held)
+        r = refit(c_e, target, [], z_cur, cand, 0.0, n_fit, held, sig_held, box=box)
         dof = max(len(e.names) - len(cand.names), 1)
         rise = (r["chi2"] - chi_d) / phi
         r["restriction"] = {"scaled_rise": float(rise), "dof": dof,

@@ -38,8 +38,8 @@ from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refit
                                       repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
-from nlp.diagnosis.discrepancy import (extra_modes_in_band, fit_discrepancy, kept_modes,
-                                       refute_in_discrepancy, subset_z)
+from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
+                                       refute_in_discrepancy)
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
@@ -287,17 +287,13 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
     log("resonances the model lacks in the band: " + ", ".join(f"{f:.2f} Hz" for f in hot)
         + ": is each one a catalogue family's, or model discrepancy?")
     wide = points_stage(cfg, case, widen, hot, log)
-    b0 = best_fit(wide.base, [base.res.z])
-    pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
-    n_fit = wide.base.n_used
-    log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
-        f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
-    keep = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log)
-    if not keep:
+    # kept as a step: on a torsional frame this stage alone has taken a quarter of an hour
+    kept, z0 = logged_step("discrepancy", fingerprint(wide.fit, base.res.z, hot),
+                           lambda lg: kept_discrepancy(case, wide, base.res.z, modes, lg), log)
+    if not kept:
         return case, points, base
-    case = replace(case, discrepancy=tuple(keep))
+    case = replace(case, discrepancy=tuple(modes[i] for i in kept))
     points = points_stage(cfg, case, widen, hot, log)
-    z0 = subset_z(pr_d, res_d.z, modes, keep)
     return case, points, baseline_stage(cfg, case, points, None, log, starts=[z0])
 
 

@@ -33,8 +33,13 @@ REPOLISH_MIN = 1.0     # scaled chi-square (over phi) a re-solved current model 
 MAX_REPOLISH = 2       # re-solves of the current model per diagnosis (each repeats a round)
 
 
-def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
-    """Fit the current model plus candidate e: values, quasi-likelihood errors, chi-squares."""
+def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held, box=True):
+    """Fit the current model plus candidate e: values, quasi-likelihood errors, chi-squares.
+
+    box=False leaves out the two seeded starts spread over the candidate's box: for a
+    question about one place in it (does an appendage tuned to this resonance explain it,
+    nlp.diagnosis.discrepancy.explained_by), where they only look elsewhere.
+    """
     refs = case_references(case)
     # 3-5 solves: gcc -O2 would take longer than they do (same numbers at -O0)
     pr = diagnosis_problem(case, target, current + [e], optimize=False, max_iter=REFIT_ITER)
@@ -46,7 +51,7 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held):
     # the added parameters start at the family's guess and at two seeded points of their box
     rng = np.random.default_rng(len(current) * 7919 + sum(map(ord, repr(e))))
     box = [[lo_ + (hi_ - lo_) * rng.uniform(0.05, 0.6) for lo_, hi_ in zip(sp["lower"], sp["upper"])]
-           for _ in range(2)]
+           for _ in range(2)] if box else []
     extra = e.starts(refs) if hasattr(e, "starts") else []
     res = best_fit(pr, [with_values(pr, z_cur, v) for v in [start] + extra + box])
     # a refit that ends above the current optimum with the candidate at its null has failed
