@@ -276,8 +276,8 @@ def explained_by(case, target, pr_d, res_d, modes, e, n_fit, held, sig_held, box
     """The catalogue refit (appendage at a floor, flexible base) that explains the resonance
     of mode e as well as its free modal term (module docstring), best first; [] when none.
     pr_d, res_d: the model with every mode fitted. The appendages start tuned to e alone
-    (box=True adds refit's two starts spread over their box, which look elsewhere: a
-    quarter of an hour on a torsional frame with six such resonances)."""
+    (box=True adds refit's two starts spread over their box, which answer another question:
+    an appendage tuned elsewhere that takes up other misfit)."""
     others = tuple(m for m in modes if m is not e)
     c_e = replace(case, discrepancy=others)
     z_cur = subset_z(pr_d, res_d.z, modes, others)

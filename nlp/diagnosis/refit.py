@@ -50,10 +50,10 @@ def refit(case, target, current, z_cur, e, score, n_fit, held, sig_held, box=Tru
              for v, lo_, sc in zip(sp["initial"], sp["lower"], sp["scale"])]
     # the added parameters start at the family's guess and at two seeded points of their box
     rng = np.random.default_rng(len(current) * 7919 + sum(map(ord, repr(e))))
-    box = [[lo_ + (hi_ - lo_) * rng.uniform(0.05, 0.6) for lo_, hi_ in zip(sp["lower"], sp["upper"])]
-           for _ in range(2)] if box else []
+    spread = [[lo_ + (hi_ - lo_) * rng.uniform(0.05, 0.6) for lo_, hi_ in zip(sp["lower"], sp["upper"])]
+              for _ in range(2)] if box else []
     extra = e.starts(refs) if hasattr(e, "starts") else []
-    res = best_fit(pr, [with_values(pr, z_cur, v) for v in [start] + extra + box])
+    res = best_fit(pr, [with_values(pr, z_cur, v) for v in [start] + extra + spread])
     # a refit that ends above the current optimum with the candidate at its null has failed
     # (a coupling refit has ended hundreds of thousands in BIC above its baseline, and was
     # read as evidence against it; see docs/method/diagnosis.md): the candidate's best
