@@ -14,25 +14,22 @@ latter starts exactly at X's chi-square), and prints both scaled rises and their
 """
 
 import argparse
+import os
+import sys
 import time
 from dataclasses import replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from nlp.case.assemble import assemble
-from nlp.case.load import load_case
 from nlp.diagnosis.decide import where
-from nlp.diagnosis.discrepancy import (RESTRICTION_LEVEL, explained_by, extra_modes_in_band,
-                                       fit_discrepancy, resonant)
-from nlp.diagnosis.driver import baseline_stage, points_stage
+from nlp.diagnosis.discrepancy import RESTRICTION_LEVEL, explained_by, resonant
 from nlp.diagnosis.evidence import dispersion
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem
 from nlp.solve.executors.threads import limit_blas_threads
 
-
-def quiet(*a, **k):
-    pass
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from discrepancy_starts import free_terms  # noqa: E402  (the stage's inputs, computed alike)
 
 
 def term_theta(pr_d, z_d, modes, e):
@@ -65,22 +62,12 @@ def nested(case, target, pr_d, res_d, modes, e, r):
 
 
 def one(path):
-    cfg = load_case(path)
-    case = assemble(cfg)
-    t0 = time.perf_counter()
-    points = points_stage(cfg, case, 1, (), quiet)
-    base = baseline_stage(cfg, case, points, None, quiet)
-    modes = extra_modes_in_band(case, points, base)
-    print(f"{path}: baseline {time.perf_counter() - t0:.0f} s; resonances the model lacks: "
-          + (", ".join(f"{m.f0:.2f} Hz" for m in modes) or "none"), flush=True)
-    if not modes:
+    got = free_terms(path)
+    if got is None:
         return
-    wide = points_stage(cfg, case, 1, tuple(m.f0 for m in modes), quiet)
-    b0 = best_fit(wide.base, [base.res.z])
-    pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
-    chi_d = 2 * res_d.f
-    phi = dispersion(chi_d, wide.base.n_used - pr_d.params.n_z)
-    print(f"  free terms: chi2 {chi_d:.1f}, phi {phi:.2f}", flush=True)
+    case, wide, modes, pr_d, res_d = got
+    phi = dispersion(2 * res_d.f, wide.base.n_used - pr_d.params.n_z)
+    print(f"  phi {phi:.2f}", flush=True)
     measured = resonant(pr_d, res_d.z, modes)
     for e in modes:
         if not any(e is x for x in measured):

@@ -27,7 +27,10 @@ def quiet(*a, **k):
     pass
 
 
-def one(path, variants):
+def free_terms(path):
+    """(case, the look's points with windows at the resonances, the modes, the model with a
+    free term at each and its optimum), or None when the baseline lacks no resonance: the
+    discrepancy stage's inputs, as `frf-nlp diagnose` computes them (printed as it goes)."""
     cfg = load_case(path)
     case = assemble(cfg)
     t0 = time.perf_counter()
@@ -37,12 +40,21 @@ def one(path, variants):
     print(f"{path}: baseline {time.perf_counter() - t0:.0f} s; resonances the model lacks: "
           + (", ".join(f"{m.f0:.2f} Hz" for m in modes) or "none"), flush=True)
     if not modes:
-        return
+        return None
     wide = points_stage(cfg, case, 1, tuple(m.f0 for m in modes), quiet)
     t0 = time.perf_counter()
     b0 = best_fit(wide.base, [base.res.z])
     pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
-    print(f"  free modal terms fitted in {time.perf_counter() - t0:.0f} s", flush=True)
+    print(f"  free modal terms fitted in {time.perf_counter() - t0:.0f} s: chi-square "
+          f"{2 * res_d.f:.1f}", flush=True)
+    return case, wide, modes, pr_d, res_d
+
+
+def one(path, variants):
+    got = free_terms(path)
+    if got is None:
+        return
+    case, wide, modes, pr_d, res_d = got
     measured = resonant(pr_d, res_d.z, modes)
     for m in modes:
         if not any(m is x for x in measured):
