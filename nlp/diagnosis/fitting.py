@@ -144,6 +144,17 @@ def best_fit(problem, z0_list):
     return best
 
 
+def continued(pr, res, times=3):
+    """res re-solved from where it stopped, up to ``times`` more, until it converges."""
+    for _ in range(times):
+        if res.success:
+            break
+        again = pr.solve(res.z)
+        if again.success or again.f < res.f:
+            res = again
+    return res
+
+
 def case_references(case):
     """Reference values of the added physics (nlp.diagnosis.families.references) for case;
     an FE model's come from its floors (nlp.diagnosis.locations.fe_references)."""

@@ -13,10 +13,11 @@ import numpy as np
 from scipy.linalg import null_space
 
 from nlp.case.assemble import assemble
-from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
+from nlp.diagnosis.fitting import (best_fit, continued, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, normalised, quasi_se, scatter_best)
 from nlp.diagnosis.harmonics import harmonic_location, story_vectors
 from nlp.diagnosis.level_kind import with_kind
+from nlp.diagnosis.materiality import banded_change
 from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import modal_parameters
 from nlp.solve.search import SearchConfig
@@ -110,7 +111,7 @@ def shared_stiffness(ref, lv):
     # far from the level's own optimum the damping-only fit can stop at the iteration
     # limit on its way down; continue from where it stopped (a 6 % story change of a
     # null FRF file: chi-square 86,165 unconverged after 3000 iterations)
-    res = _continued(pr, res)
+    res = continued(pr, res)
     pr_l = lv["problem"]
     k = pr_l.params.n_z - params.n_z
     own = {"lv": _own_chi2(lv), "ref": _own_chi2(ref)}
@@ -168,7 +169,7 @@ def _profiled(source, data, theta):
     with masses and stiffnesses held at theta (else source's optimum): derivatives over the
     held decision variables, the free damping projected out (variable projection)."""
     res, pr_h, _ = _shared_fit(source, data, theta_held=theta)
-    res = _continued(pr_h, res)
+    res = continued(pr_h, res)
     pr = data["problem"]
     r, J = pr.residuals(pr.params.z_from_theta(pr_h.theta(res.z)))
     jh, jd = _held_columns(pr)
@@ -220,7 +221,7 @@ def _held_chi2(source, data, theta_held=None):
     """(chi-square, converged) of ``data``'s level refitted with masses and stiffnesses
     held at ``source``'s optimum (or at theta_held), continued until it converges."""
     res, pr, _ = _shared_fit(source, data, theta_held=theta_held)
-    res = _continued(pr, res)
+    res = continued(pr, res)
     return float(2 * res.f), bool(res.success)
 
 
@@ -250,17 +251,6 @@ def _weighted_theta(ref, lv):
     out = th_l.copy()
     out[idx] = th_l[idx] + Sl @ d
     return out
-
-
-def _continued(pr, res, times=3):
-    """res re-solved from where it stopped, up to ``times`` more, until it converges."""
-    for _ in range(times):
-        if res.success:
-            break
-        again = pr.solve(res.z)
-        if again.success or again.f < res.f:
-            res = again
-    return res
 
 
 def _shared_fit(ref, lv, release=None, theta_start=None, theta_held=None):
@@ -299,7 +289,7 @@ def release_location(ref, lv, lr):
         # an unconverged drop is only a lower bound and blocks the decision: continue it
         # from where it stopped (an unconverged refit of a wrong story has stopped ahead
         # of the true story's, so the score test named the wrong one)
-        res = _continued(pr, res)
+        res = continued(pr, res)
         drops.append((float((lr["chi2_shared"] - 2 * res.f) / lr["phi"]), bool(res.success)))
     return drops
 
@@ -358,6 +348,16 @@ def _compare_levels(cfg, ref, fits, log):
     if not by_levels and not by_harmonics:
         return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
                 "harmonics": harm}
+    # every real frame's joints are slightly level-dependent: only a change beyond theirs is
+    # a finding (nlp.diagnosis.materiality)
+    joints = banded_change(ref, lv, lr["limit"], {"ref": _own_chi2(ref), "lv": _own_chi2(lv)},
+                           {"ref": _phi(ref), "lv": _phi(lv)})
+    log(f"  stories free within +-{100 * joints['delta']:.0f} % between the levels (the joints "
+        f"of a real frame): +{joints['excess']:.1f} (scaled; BIC limit {joints['limit']:.1f})"
+        + ("" if joints["material"] else ": within what joints do, not a finding"))
+    if not joints["material"]:
+        return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
+                "harmonics": harm, "joint_band": joints}
     release = None
     if by_levels and not by_harmonics:
         # the harmonics name the story already; one refit per story costs minutes on a
@@ -376,7 +376,7 @@ def _compare_levels(cfg, ref, fits, log):
     # a change of mass or damping is not the family's stiffness (nlp.diagnosis.level_kind)
     finding = with_kind(ref, lv, finding, (_phi(ref), _phi(lv)), log)
     return {"found": finding, "max_z": float(zsc[i]), "held_out": (before, after),
-            "harmonics": harm, "shared_stiffness": lr}
+            "harmonics": harm, "shared_stiffness": lr, "joint_band": joints}
 
 
 def _most_different_level(ref, others):

@@ -307,6 +307,17 @@ def _alternatives(found, alternatives):
     return alts
 
 
+def _joint_statements(nonlin, nonlin_found):
+    """A level dependence within what every real frame's joints do is said, not found."""
+    band = (nonlin or {}).get("joint_band")
+    if nonlin_found or not band or band["material"]:
+        return []
+    return [f"The excitation levels do not share one linear model exactly, but stiffness "
+            f"changes of at most {100 * band['delta']:.0f} % per story between the levels "
+            f"explain the difference (within BIC's price), as the joints of real frames do; "
+            f"this is not reported as a nonlinearity."]
+
+
 def _optional_parts(result, screening, checks, nonlin, nonlin_found):
     """The screening, phase and loss checks and the level comparison, when they were made."""
     if screening is not None:
@@ -320,6 +331,7 @@ def _optional_parts(result, screening, checks, nonlin, nonlin_found):
         result["level_comparison"] = {"found": nonlin_found, "max_z": nonlin["max_z"],
                                       "shared_stiffness": nonlin.get("shared_stiffness"),
                                       "harmonics": nonlin.get("harmonics"),
+                                      "joint_band": nonlin.get("joint_band"),
                                       "not_compared": nonlin.get("not_compared", [])}
 
 
@@ -352,6 +364,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found,
                                extra + beyond)
     statements += [d["statement"] for d in disc]
+    statements += _joint_statements(nonlin, nonlin_found)
     statements += _tie_statements(sel)
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
     statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra)
