@@ -220,13 +220,15 @@ def kind_statement(k):
             "each level is given, and the mechanism is not modelled.")
 
 
-def with_kind(ref, lv, finding, phis, log):
+def with_kind(ref, lv, finding, phis, log, k=None):
     """The nonlinearity finding with what changes with the level (finding["mechanism"]); a
     change of mass or damping moves the finding to its place and says that no family
-    describes it. Unchanged where the kinds do not apply (FE models)."""
+    describes it. Unchanged where the kinds do not apply (FE models). k: the kind, when
+    already decided (:func:`level_kind`)."""
     if not applies(ref):
         return finding
-    k = level_kind(ref, lv, *phis, level_order(ref, lv))
+    if k is None:
+        k = level_kind(ref, lv, *phis, level_order(ref, lv))
     mech = {"kind": k["kind"], "index": k["index"], "tied_with": k["tied_with"],
             "margin": k["margin"], "rises": k["rises"], "held_chi2": k["held_chi2"],
             "best": {n: dict(r) for n, r in k["best"].items()}}

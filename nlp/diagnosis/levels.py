@@ -17,7 +17,7 @@ from nlp.diagnosis.fitting import (best_fit, continued, diagnosis_problem, fit_t
                                    noise_sigma, normalised, quasi_se, scatter_best)
 from nlp.diagnosis.harmonics import harmonic_location, story_vectors
 from nlp.diagnosis.level_kind import with_kind
-from nlp.diagnosis.materiality import banded_change
+from nlp.diagnosis.materiality import joint_gate
 from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import modal_parameters
 from nlp.solve.search import SearchConfig
@@ -350,12 +350,9 @@ def _compare_levels(cfg, ref, fits, log):
                 "harmonics": harm}
     # every real frame's joints are slightly level-dependent: only a change beyond theirs is
     # a finding (nlp.diagnosis.materiality)
-    joints = banded_change(ref, lv, lr["limit"], {"ref": _own_chi2(ref), "lv": _own_chi2(lv)},
-                           {"ref": _phi(ref), "lv": _phi(lv)})
-    log(f"  stories free within +-{100 * joints['delta']:.0f} % between the levels (the joints "
-        f"of a real frame): +{joints['excess']:.1f} (scaled; BIC limit {joints['limit']:.1f})"
-        + ("" if joints["material"] else ": within what joints do, not a finding"))
-    if not joints["material"]:
+    joints, kind = joint_gate(ref, lv, lr["limit"], {"ref": _own_chi2(ref), "lv": _own_chi2(lv)},
+                              {"ref": _phi(ref), "lv": _phi(lv)}, log, by_harmonics)
+    if not joints["finding"]:
         return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
                 "harmonics": harm, "joint_band": joints}
     release = None
@@ -374,7 +371,7 @@ def _compare_levels(cfg, ref, fits, log):
     finding = _nonlinear_finding(ref, lv, i, zsc, lr, scores, release, located_by, harm,
                                  (before, after))
     # a change of mass or damping is not the family's stiffness (nlp.diagnosis.level_kind)
-    finding = with_kind(ref, lv, finding, (_phi(ref), _phi(lv)), log)
+    finding = with_kind(ref, lv, finding, (_phi(ref), _phi(lv)), log, kind)
     return {"found": finding, "max_z": float(zsc[i]), "held_out": (before, after),
             "harmonics": harm, "shared_stiffness": lr, "joint_band": joints}
 

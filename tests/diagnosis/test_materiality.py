@@ -37,9 +37,11 @@ def test_joint_sized_changes_are_level_dependent_but_not_material(tmp_path):
     """The second level differs from the first by story stiffness changes of -2, +1.5 and
     -2.5 % (every story, both signs: joints) or by +8 % at story 2 alone (an element). At
     0.2 % noise both are level-dependent (one common set misses by more than BIC's price),
-    but only the element lies outside what changes of at most JOINT_CHANGE per story
-    explain; the joints' banded rise is that of a model containing the truth, a chi-square
-    of a few degrees of freedom, far under the price."""
+    but only the element lies outside what changes of at most JOINT_CHANGE in each story
+    stiffness and floor mass explain (a mass within 3 % and a stiffness within 3 % cannot
+    make a story 8 % stiffer without moving the other modes); the joints' banded rise is
+    that of a model containing the truth, a chi-square of a few degrees of freedom, far
+    under the price."""
     rng = np.random.default_rng(3)
     m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
     M, C, K = frame_matrices(m, k, zeta=0.015)
@@ -64,3 +66,16 @@ def test_joint_sized_changes_are_level_dependent_but_not_material(tmp_path):
         else:
             assert out["excess"] > 5 * out["limit"], out
     assert material == {"joints": False, "element": True}
+
+
+def test_a_level_dependence_within_the_band_is_said_not_found():
+    """The verdict's statements say it only when the comparison found no material change,
+    and say so differently when the banded refit could not decide."""
+    from nlp.diagnosis.verdict import _joint_statements
+    within = {"joint_band": {"delta": 0.03, "material": False, "within": True}}
+    open_ = {"joint_band": {"delta": 0.03, "material": False, "within": False}}
+    assert "explain" in _joint_statements(within, False)[0]
+    assert "not decided" in _joint_statements(open_, False)[0]
+    material = {"joint_band": {"delta": 0.03, "material": True, "within": False}}
+    assert _joint_statements(material, False) == []
+    assert _joint_statements(within, True) == [] and _joint_statements(None, False) == []
