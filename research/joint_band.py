@@ -45,7 +45,8 @@ def one(path, deltas):
     phi = {"ref": _phi(ref), "lv": _phi(lv)}
     harm = _harmonics(cfg, [ref, lv])
     located = bool(harm and harm["best"] is not None)
-    gate, kind = joint_gate(ref, lv, lr["limit"], own, phi, lambda m: print(m, flush=True), located)
+    gate, kind = joint_gate(ref, lv, lr["limit"], own, phi, lambda m: print(m, flush=True))
+    gate["harmonics_located"] = located
     rows = []
     for d in deltas:
         t0 = time.perf_counter()
@@ -74,7 +75,8 @@ def main():
                   f"{'material' if r['material'] else 'within' if r['within'] else 'not decided'} "
                   f"({r['seconds']:.0f} s)", flush=True)
         k = "-" if kind is None else f"{kind['kind']} at {kind['index'] + 1}, rises {kind['rises']}"
-        print(f"{'':36s} the rule: {'a finding' if gate['finding'] else 'not a finding'} (kind {k})",
+        print(f"{'':36s} the rule: {'a finding' if gate['finding'] else 'not a finding'} (kind {k}; "
+              f"harmonics {'locate one story' if gate['harmonics_located'] else 'locate none'})",
               flush=True)
         print(json.dumps({"case": path, "shared": lr, "bands": rows, "truth": what, "gate": gate,
                           "joints": joints}, default=str), file=sys.stderr, flush=True)

@@ -351,7 +351,7 @@ def _compare_levels(cfg, ref, fits, log):
     # every real frame's joints are slightly level-dependent: only a change beyond theirs is
     # a finding (nlp.diagnosis.materiality)
     joints, kind = joint_gate(ref, lv, lr["limit"], {"ref": _own_chi2(ref), "lv": _own_chi2(lv)},
-                              {"ref": _phi(ref), "lv": _phi(lv)}, log, by_harmonics)
+                              {"ref": _phi(ref), "lv": _phi(lv)}, log)
     if not joints["finding"]:
         return {"found": None, "max_z": float(np.max(np.abs(zsc))), "shared_stiffness": lr,
                 "harmonics": harm, "joint_band": joints}

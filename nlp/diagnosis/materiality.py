@@ -36,17 +36,16 @@ from nlp.diagnosis.level_kind import applies, level_kind, level_order
 JOINT_CHANGE = 0.03   # largest story stiffness change between levels that joints explain
 
 
-def joint_gate(ref, lv, limit, own, phi, log, located=False):
+def joint_gate(ref, lv, limit, own, phi, log):
     """(:func:`banded_change`'s result, the level kind or None): whether the level
-    dependence is a finding (result["finding"]). Within the band it still is
+    dependence is a finding (result["finding"]). Within the band it still is when the
+    damping falls as the level rises (decided by :func:`nlp.diagnosis.level_kind.level_kind`):
+    dry friction's equivalent damping goes as 1 / amplitude, which stiffening or softening
+    joints do not do, while the damping of real frames rises with the amplitude.
 
-    * when the out-of-band harmonics locate one story (``located``,
-      :mod:`nlp.diagnosis.harmonics`): joints are in every story alike, so a single story
-      whose force explains over half the harmonics' power is an element, not the joints;
-    * when the damping falls as the level rises (decided by
-      :func:`nlp.diagnosis.level_kind.level_kind`): dry friction's equivalent damping goes
-      as 1 / amplitude, which stiffening or softening joints do not do, while the damping of
-      real frames rises with the amplitude."""
+    Harmonics that locate one story are not such a sign: joints differ from story to story,
+    and on three of eleven development nulls within the band they located one story
+    (docs/method/diagnosis.md, "The joints' band, measured")."""
     joints = banded_change(ref, lv, limit, own, phi)
     log(f"  masses and stiffnesses free within +-{100 * joints['delta']:.0f} % between the "
         f"levels (a real frame's joints): +{joints['excess']:.1f} (scaled; BIC limit "
@@ -56,12 +55,10 @@ def joint_gate(ref, lv, limit, own, phi, log, located=False):
     if not joints["material"] and applies(ref):
         kind = level_kind(ref, lv, phi["ref"], phi["lv"], level_order(ref, lv))
     joints["falling_damping"] = bool(kind and kind["kind"] == "damping" and kind["rises"] is False)
-    joints["located"] = bool(located)
-    joints["finding"] = joints["material"] or joints["falling_damping"] or joints["located"]
+    joints["finding"] = joints["material"] or joints["falling_damping"]
     if not joints["material"]:
-        log("  " + ("but the harmonics locate one story's force, where joints are in every story"
-                    if located else "but the damping falls as the level rises (dry friction), "
-                    "which joints do not do" if joints["falling_damping"] else "not a finding"))
+        log("  " + ("but the damping falls as the level rises (dry friction), which joints do "
+                    "not do" if joints["falling_damping"] else "not a finding"))
     return joints, kind
 
 

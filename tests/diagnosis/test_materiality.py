@@ -79,3 +79,23 @@ def test_a_level_dependence_within_the_band_is_said_not_found():
     material = {"joint_band": {"delta": 0.03, "material": True, "within": False}}
     assert _joint_statements(material, False) == []
     assert _joint_statements(within, True) == [] and _joint_statements(None, False) == []
+
+
+def test_within_the_band_only_falling_damping_is_a_finding(monkeypatch):
+    """The gate's logic: material -> a finding; within the band -> a finding only when the
+    level kind is damping that falls as the level rises (dry friction); rising damping, a
+    stiffness or a mass, or an unknown order -> none."""
+    import nlp.diagnosis.materiality as mat
+    ref = {"case": None}
+    monkeypatch.setattr(mat, "applies", lambda ref: True)
+    monkeypatch.setattr(mat, "level_order", lambda ref, lv: 1)
+    cases = [(True, None, True), (False, ("damping", False), True), (False, ("damping", True), False),
+             (False, ("damping", None), False), (False, ("stiffness", False), False),
+             (False, ("mass", False), False)]
+    for material, kind, expected in cases:
+        monkeypatch.setattr(mat, "banded_change", lambda *a, m=material: {
+            "delta": 0.03, "excess": 100.0 if m else 0.0, "limit": 50.0, "material": m,
+            "within": not m})
+        monkeypatch.setattr(mat, "level_kind", lambda *a, k=kind: {"kind": k[0], "rises": k[1]})
+        out, _ = mat.joint_gate(ref, ref, 50.0, {}, {"ref": 1.0, "lv": 1.0}, lambda m: None)
+        assert out["finding"] is expected, (material, kind)
