@@ -21,9 +21,11 @@ JOINT_CHANGE = 3 %: the 1 % joints, as seen where an FRF is decided. An equivale
 Welch segments with the most drift: on 66 story draws (chirps and random drives) the
 segment with the most drift carries 1.3-2.7 times the record's drift variance
 (``research/joint_sizing.py``; docs/method/diagnosis.md), so 1 % joints look like up to
-2.7 %, rounded up to 3 %. A planted stiffness nonlinearity the diagnosis is meant to find
-(the catalogue's smallest, 0.06, changes its story by 7-8 % between the levels), and a part
-that slides on a floor (10-25 % of its mass), lie above it.
+2.7 %, rounded up to 3 %. The family's smallest planted nonlinearity (0.06) changes its story
+by 7-8 % between the levels on the blind benchmark; on the lab generator the band keeps
+cubic springs of that size and gives up contacts, weak friction and sliding masses whose
+equivalent masses and stiffnesses stay within it (docs/method/diagnosis.md, "The joints'
+band, measured").
 """
 
 from dataclasses import replace
@@ -33,7 +35,7 @@ import numpy as np
 from nlp.diagnosis.fitting import best_fit, continued, diagnosis_problem
 from nlp.diagnosis.level_kind import applies, level_kind, level_order
 
-JOINT_CHANGE = 0.03   # largest story stiffness change between levels that joints explain
+JOINT_CHANGE = 0.03   # largest story stiffness or floor mass change between levels from joints
 
 
 def joint_gate(ref, lv, limit, own, phi, log):
