@@ -32,6 +32,7 @@ import numpy as np
 
 from nlp.case.assemble import assemble
 from nlp.case.checks import check_start_residuals
+from nlp.diagnosis.asymmetry import story_asymmetry
 from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same,
                                       scan_secondary, score, to_refit)
 from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
@@ -474,7 +475,8 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         log("each test alone, with the joint findings:")
         alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log,
                            sel.reciprocity)
-    return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone)
+    asym = story_asymmetry(cfg, case, state["problem"], state["z"], log)
+    return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone, asym)
 
 
 def _final_records(sel):

@@ -266,6 +266,8 @@ MECHANISM_WORDS = {"mass": "a level-dependent mass (a part that slides or rattle
                    "rising damping": "a level-dependent damping, rising with the level or of "
                                      "unknown order (a stiffness nonlinearity's spread, or slip: "
                                      "not decided)",
+                   "asymmetric": "a story stiffer one way than the other (a breathing crack, "
+                                 "a gap or a one-sided stop; no family describes it)",
                    None: "a level dependence whose kind the data cannot tell (stiffness, mass "
                          "or damping)"}
 
@@ -278,5 +280,10 @@ def mechanism_words(f):
         return None
     if mech["kind"] is None:
         return MECHANISM_WORDS[None], None
+    if mech["kind"] == "asymmetric":   # nlp.diagnosis.asymmetry
+        d = f["parameters"].get("bilinear_delta")
+        return MECHANISM_WORDS["asymmetric"], (
+            f"about {100 * d:.0f} % softer when {mech['softer_when']} (bilinear reading)"
+            if d is not None else f"softer when {mech['softer_when']}")
     key = "rising damping" if outside(f) == "undecided" else mech["kind"]
     return MECHANISM_WORDS[key], changed(mech["best"][mech["kind"]]) + " between the levels"

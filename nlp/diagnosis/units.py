@@ -39,6 +39,12 @@ PHYSICAL = {
     ("nonlinearity", "k"): ("story stiffness", None, "N/m", "linear"),
     ("nonlinearity", "relative_change"): ("stiffness change between levels", "dk/k", "%",
                                           "percent"),
+    ("nonlinearity", "kappa"): ("even restoring force per unit |drift|", "kappa", "N/m",
+                                "linear"),
+    ("nonlinearity", "k_equivalent"): ("equivalent linear story stiffness", "k_eq", "N/m",
+                                       "linear"),
+    ("nonlinearity", "bilinear_delta"): ("stiffness loss on the soft side (bilinear reading)",
+                                         "delta", "%", "percent"),
 }
 # derived quantities shown after a parameter: (family, prefix) -> (label, symbol, unit, ref)
 DERIVED = {("secondary_oscillator", "mu"): ("appendage mass", "m_s", "kg", "m_ref")}

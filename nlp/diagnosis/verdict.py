@@ -197,7 +197,7 @@ def _fit_summary(base, state, k, nonlin_found, nonlin, found):
                   "reduced_chi2_sd": base.spread[0], "effective_points": base.spread[1]}
     fit_after = {"objective": state["chi"] / 2, "reduced_chi2": state["chi"] / max(nu - k, 1),
                  "held_out_chi2": state["held"]}
-    if nonlin_found and not found:
+    if nonlin_found and not found and "held_out" in nonlin:
         before_o, after_o = nonlin["held_out"]
         fit_before["other_level_held_out_chi2"] = before_o
         fit_after = dict(fit_before, other_level_held_out_chi2=after_o)
@@ -332,6 +332,8 @@ def _optional_parts(result, screening, checks, nonlin, nonlin_found):
         result["phase_check"] = checks.phase["channels"]
     if checks.loss is not None:
         result["loss_check"] = {k: v for k, v in checks.loss.items() if k != "findings"}
+    if checks.asymmetry is not None:
+        result["asymmetry"] = checks.asymmetry["test"]
     if nonlin is not None:
         # written whether or not a nonlinearity was named, so a miss can be read from the file
         result["level_comparison"] = {"found": nonlin_found, "max_z": nonlin["max_z"],
@@ -351,8 +353,10 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     remaining = (bool(found) or bool(inside["findings"])) and not adequate(
         state["chi"], max(base.nu - k, 1), state["held"])
     disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
+    asym = (checks.asymmetry or {}).get("finding")
     verdict = classify(found, unconfirmed, sel.indistinct,
-                       nonlin_found and outside(nonlin["found"]), inside["findings"],
+                       "outside" if asym else nonlin_found and outside(nonlin["found"]),
+                       inside["findings"],
                        adequate(base.chi, base.nu, base.held), remaining, bool(disc))
     # resonances beyond the fitted band do not judge the fit inside it (the verdict above);
     # they are reported as model discrepancy, not as extra modes
@@ -364,6 +368,9 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
     findings = [public(r) for r in found] + inside["findings"]
     statements = [f["statement"] for f in findings]
+    if asym:
+        findings.insert(0, asym)
+        statements.insert(0, asym["statement"])
     if nonlin_found:
         findings.insert(0, nonlin["found"])
         statements[:0] = _level_statements(base, nonlin, level_bound)

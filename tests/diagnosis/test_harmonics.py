@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.signal import chirp
 
-from support.frames import shear_K
+from support.frames import shear_K, story_link
 from nlp.diagnosis.harmonics import force_frfs, harmonic_location, story_vectors
 from nlp.diagnosis.priors import story_patterns
 from nlp.solve.problem import Channel
@@ -40,12 +40,7 @@ def _records(story, k3, noise, seed):
         x, v = s[:3], s[3:]
         f = np.zeros(3)
         f[0] = u(tt)
-        if story is not None:
-            d = x[story - 1] - (x[story - 2] if story > 1 else 0.0)
-            fn = k3 * d ** 3
-            f[story - 1] -= fn
-            if story > 1:
-                f[story - 2] += fn
+        story_link(f, x, story, lambda d: k3 * d ** 3)
         return np.r_[v, Minv @ (f - C @ v - K @ x)]
 
     sol = solve_ivp(rhs, (0, T), np.zeros(6), t_eval=t, rtol=1e-8, atol=1e-11, max_step=0.01)

@@ -32,3 +32,15 @@ def random_system(n, rng):
     D = rng.standard_normal((n, n))
     C = 0.5 * (D @ D.T) + 0.1 * np.eye(n)
     return M, C, K
+
+
+def story_link(f, x, story, force):
+    """Add a nonlinear story link to the load vector f (in place) and return it: ``force(d)``
+    [N] acts across ``story`` (1-based) on its drift d = x_s - x_{s-1} (x_0 the ground)."""
+    if story is not None:
+        d = x[story - 1] - (x[story - 2] if story > 1 else 0.0)
+        fn = force(d)
+        f[story - 1] -= fn
+        if story > 1:
+            f[story - 2] += fn
+    return f
