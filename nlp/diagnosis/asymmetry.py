@@ -31,7 +31,7 @@ from nlp.diagnosis.harmonics import force_frfs, story_vectors
 from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import load_vector
 
-__all__ = ["model_drifts", "asymmetry", "bilinear_delta", "story_asymmetry",
+__all__ = ["model_drifts", "asymmetry", "bilinear_delta", "story_asymmetry", "with_asymmetry",
            "ASYMMETRY_Z", "ASYMMETRY_GAP"]
 
 ASYMMETRY_Z = 6.0     # the best story's theta this many standard errors from zero ...
@@ -182,9 +182,20 @@ def bilinear_delta(kappa, k_eq):
     return r / (1 + r / 2)
 
 
+def with_asymmetry(nonlin, asym):
+    """The level stage's result (nlp.diagnosis.levels.nonlinearity; None for one level) with
+    the test's result under "asymmetry" and its finding under "asymmetric"; one level gives a
+    result with no level comparison ("levels": False)."""
+    if asym is None:
+        return nonlin
+    out = dict(nonlin) if nonlin is not None else {"found": None, "max_z": None, "levels": False}
+    out.update(asymmetry=asym["test"], asymmetric=asym["finding"])
+    return out
+
+
 def story_asymmetry(cfg, case, problem, z, log):
-    """The test on the case's records, every level's, with the model at z (the final model
-    of a look): {"test": :func:`asymmetry`'s result, "finding": the asymmetric story or
+    """The test on the case's records, every level's, with the model at z (the baseline):
+    {"test": :func:`asymmetry`'s result, "finding": the asymmetric story or
     None}; None without time records or story patterns (FE models) or for a sparse model."""
     if case.records is None:
         return None

@@ -32,7 +32,7 @@ import numpy as np
 
 from nlp.case.assemble import assemble
 from nlp.case.checks import check_start_residuals
-from nlp.diagnosis.asymmetry import story_asymmetry
+from nlp.diagnosis.asymmetry import story_asymmetry, with_asymmetry
 from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same,
                                       scan_secondary, score, to_refit)
 from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
@@ -116,6 +116,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
                          lambda lg: nonlinearity(cfg, lg), log)
+    nonlin = with_asymmetry(nonlin, story_asymmetry(cfg, case, points.base, base.res.z, log))
     level_bound = level_stage(base, nonlin, log)
     if level_bound:
         # the model discrepancy keeps linear candidates from absorbing resonances the model
@@ -301,10 +302,10 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
 def level_stage(base, nonlin, log):
     """Whether the structure is level-dependent and the linear model misses the reference
     level by more than LEVEL_MISFIT: then no linear candidate is searched on it."""
-    level_bound = bool(nonlin and nonlin["found"]
+    level_bound = bool(nonlin and (nonlin["found"] or nonlin.get("asymmetric"))
                        and max(base.chi / base.nu, base.held) > LEVEL_MISFIT)
     if level_bound:
-        log(f"the structure is level-dependent and the reference level's reduced chi-square is "
+        log(f"the structure is nonlinear and the reference level's reduced chi-square is "
             f"{base.chi / base.nu:.0f} (held-out {base.held:.0f}): linear candidates are not "
             "searched on it")
     return level_bound
@@ -475,8 +476,7 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         log("each test alone, with the joint findings:")
         alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log,
                            sel.reciprocity)
-    asym = story_asymmetry(cfg, case, state["problem"], state["z"], log)
-    return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone, asym)
+    return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone)
 
 
 def _final_records(sel):

@@ -82,7 +82,6 @@ class Checks:
     consistency: list
     unconfirmed: list
     tests_alone: list = field(default_factory=list)   # joint diagnoses (nlp.diagnosis.joint)
-    asymmetry: Optional[dict] = None   # a story stiffer one way (nlp.diagnosis.asymmetry)
 
 
 @dataclass

@@ -221,13 +221,13 @@ def _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found, 
     return suggestions
 
 
-def _level_statements(base, nonlin, level_bound):
-    """The named nonlinearity first; for a level-bound case, why nothing linear is judged."""
-    out = [nonlin["found"]["statement"]]
+def _level_statements(base, found, level_bound):
+    """The named nonlinearities first; for a level-bound case, why nothing linear is judged."""
+    out = [f["statement"] for f in found]
     if level_bound:
         out.append(f"No linear model fits the reference level (reduced chi-square "
                    f"{base.chi / base.nu:.1f}, {base.held:.1f} on the held-out shoulders): the "
-                   "level dependence is there too, so no linear candidate, prior or "
+                   "nonlinearity acts there too, so no linear candidate, prior or "
                    "damper is judged on it.")
     return out
 
@@ -332,9 +332,9 @@ def _optional_parts(result, screening, checks, nonlin, nonlin_found):
         result["phase_check"] = checks.phase["channels"]
     if checks.loss is not None:
         result["loss_check"] = {k: v for k, v in checks.loss.items() if k != "findings"}
-    if checks.asymmetry is not None:
-        result["asymmetry"] = checks.asymmetry["test"]
-    if nonlin is not None:
+    if (nonlin or {}).get("asymmetry") is not None:
+        result["asymmetry"] = nonlin["asymmetry"]
+    if nonlin is not None and nonlin.get("levels", True):
         # written whether or not a nonlinearity was named, so a miss can be read from the file
         result["level_comparison"] = {"found": nonlin_found, "max_z": nonlin["max_z"],
                                       "shared_stiffness": nonlin.get("shared_stiffness"),
@@ -353,7 +353,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     remaining = (bool(found) or bool(inside["findings"])) and not adequate(
         state["chi"], max(base.nu - k, 1), state["held"])
     disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
-    asym = (checks.asymmetry or {}).get("finding")
+    asym = (nonlin or {}).get("asymmetric")
     verdict = classify(found, unconfirmed, sel.indistinct,
                        "outside" if asym else nonlin_found and outside(nonlin["found"]),
                        inside["findings"],
@@ -368,12 +368,9 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
     findings = [public(r) for r in found] + inside["findings"]
     statements = [f["statement"] for f in findings]
-    if asym:
-        findings.insert(0, asym)
-        statements.insert(0, asym["statement"])
-    if nonlin_found:
-        findings.insert(0, nonlin["found"])
-        statements[:0] = _level_statements(base, nonlin, level_bound)
+    named = ([nonlin["found"]] if nonlin_found else []) + ([asym] if asym else [])
+    findings[:0] = named
+    statements[:0] = _level_statements(base, named, level_bound) if named else []
     suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found,
                                extra + beyond)
     statements += [d["statement"] for d in disc]
