@@ -176,17 +176,19 @@ def run(case, out, resume=False, log=print, **overrides):
     return RunResult(out, status, updates, summary)
 
 
-def diagnose(case, out, resume=False, log=print, **overrides):
+def diagnose(case, out, resume=False, log=print, budget=None, **overrides):
     """Find what physics the model leaves out, as ``frf-nlp diagnose`` does.
 
     Each finished search and round of refits is kept in ``out.partial/diagnosis/`` until
     the diagnosis completes; ``resume`` continues an interrupted one from there (the same
-    diagnosis.json as without the interruption).
+    diagnosis.json as without the interruption). budget [min]: no stage starts after it is
+    spent; the result says where it stopped, and the steps stay for ``resume``.
     """
     cfg = _config(case, overrides)
     out = _folder(out)
     with output_folder(out, "diagnose") as stage, one_blas_thread():
-        _diagnose(cfg, stage, log=log, resume=resume, ckpt_out=out)
+        _diagnose(cfg, stage, log=log, resume=resume, ckpt_out=out,
+                  budget=None if budget is None else 60.0 * budget)
         write_report(stage)
     with open(os.path.join(out, "diagnosis.json")) as fh:
         doc = json.load(fh)

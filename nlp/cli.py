@@ -38,7 +38,7 @@ def _run(args):
 
 def _diagnose(args):
     out = _out(args, "diagnosis")
-    api.diagnose(_case(args), out, resume=args.resume)
+    api.diagnose(_case(args), out, resume=args.resume, budget=args.budget)
     print(f"wrote {out}/diagnosis.json, residual_map.png, frf_diagnosis_*.png, report.html")
     return 0
 
@@ -64,6 +64,17 @@ _EPILOG = """exit status:
        finished searches and rounds, for --resume
 
 Case-file reference: docs/case_reference.md. Python API: docs/api (see README)."""
+
+
+def _minutes(text):
+    """A positive number of minutes (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number of minutes, got {text!r}")
+    return v
 
 
 def _executor_arguments(p, what):
@@ -106,6 +117,10 @@ def _parser():
     dg.add_argument("--resume", action="store_true", help="continue an interrupted diagnosis "
                     "into the same --out: its finished searches and rounds are taken from "
                     "the checkpoint (DIR.partial/diagnosis/)")
+    dg.add_argument("--budget", type=_minutes, metavar="MINUTES", help="start no stage (the "
+                    "model discrepancy, a round of candidates, the widened look) after this "
+                    "many minutes: the verdict says where it stopped, and --resume with a "
+                    "larger budget goes on")
     bt = sub.add_parser("batch", help="update the same model from every record (monitoring)")
     bt.add_argument("case", help="case YAML file (data.file is replaced by each record)")
     bt.add_argument("records", nargs="+", help="record files, folders or glob patterns")

@@ -1,6 +1,7 @@
 """Score `frf-nlp diagnose` on the lab benchmark (scripts/make_lab_benchmark.py).
 
-    python scripts/score_lab.py --bench lab [--only 00,32] [--timeout 1800] [--summary-only] [--exam]
+    python scripts/score_lab.py --bench lab [--only 00,32] [--timeout 1800] [--budget 25]
+                                [--summary-only] [--exam]
 
 Each case runs as `python -m nlp diagnose CASE/case.yaml --out CASE/diagnosis`, one at a
 time; truth.json is read afterwards. One JSON line per case goes to BENCH/scores.jsonl as
@@ -99,9 +100,11 @@ def judge(truth, res):
     return lab, bool(ok), extra, set_up
 
 
-def run(folder, timeout):
+def run(folder, timeout, budget=None):
+    """Diagnose one case (budget [min]: diagnose --budget, None for none)."""
     out = os.path.join(folder, "diagnosis")
     cmd = [sys.executable, "-m", "nlp", "diagnose", os.path.join(folder, "case.yaml"), "--out", out]
+    cmd += ["--budget", str(budget)] if budget else []
     t0 = time.perf_counter()
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -165,6 +168,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bench", default="lab")
     ap.add_argument("--timeout", type=float, default=1800.0)
+    ap.add_argument("--budget", type=float, help="diagnose --budget MINUTES: no stage starts "
+                    "after it, so the case ends with a verdict before --timeout")
     ap.add_argument("--only", help="comma-separated case-name prefixes, run in this order")
     ap.add_argument("--summary-only", action="store_true")
     ap.add_argument("--exam", action="store_true", help="allow seeds >= 100 (an exam, scored once)")
@@ -190,7 +195,7 @@ def main():
             print(f"{name}: seed {truth['seed'] // 1000} is not a development seed (0-99); "
                   "pass --exam to score an exam once", file=sys.stderr)
             return 2
-        code, err, seconds, res = run(folder, a.timeout)
+        code, err, seconds, res = run(folder, a.timeout, a.budget)
         lab, ok, extra, set_up = judge(truth, res)
         r = {"case": name, "category": truth["category"], "exit": code, "error": err,
              "seconds": seconds, "verdict": res["verdict"] if res else None, "label": lab, "ok": ok,

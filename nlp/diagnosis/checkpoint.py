@@ -32,6 +32,7 @@ import shutil
 import signal
 import sys
 import threading
+import time
 
 import numpy as np
 
@@ -43,7 +44,7 @@ from nlp.output.provenance import provenance
 from nlp.output.results import write_atomic
 
 __all__ = ["recording", "step", "logged_step", "refits_step", "repolish_step", "fingerprint",
-           "checkpoint_dir", "FORMAT"]
+           "checkpoint_dir", "budget_spent", "budget_report", "FORMAT"]
 
 FORMAT = "frf-nlp-diagnosis-checkpoint/1"
 _OPEN = []   # the checkpoint of the diagnosis running in this process (innermost last)
@@ -111,6 +112,7 @@ class _Checkpoint:
 
     def __init__(self, folder, header, resume):
         self.folder, self.n, self.reused, self.valid = folder, 0, 0, resume
+        self.budget = None
         self.interrupts = _Interrupts()
         head = os.path.join(folder, "header.json")
         if resume:
@@ -149,13 +151,45 @@ class _Checkpoint:
         return value
 
 
+class _Budget:
+    """A diagnosis's time budget [s] from its start, and the stages it stopped before."""
+
+    def __init__(self, seconds):
+        self.seconds, self.t0, self.stops = float(seconds), time.monotonic(), []
+
+
+def budget_spent(where):
+    """Whether the diagnosis's time budget is spent as ``where`` (a stage) is about to start;
+    False without a budget. The answer is recorded as a step, so a resumed diagnosis with the
+    same budget decides as the first did (a different budget decides afresh)."""
+    if not _OPEN or _OPEN[-1].budget is None:
+        return False
+    b = _OPEN[-1].budget
+    spent = step("budget", fingerprint(where, b.seconds),
+                 lambda: time.monotonic() - b.t0 > b.seconds)
+    if spent:
+        b.stops.append(where)
+    return spent
+
+
+def budget_report():
+    """{"minutes", "stopped_before": [stages]} when the diagnosis stopped at its budget, else
+    None."""
+    b = _OPEN[-1].budget if _OPEN else None
+    if b is None or not b.stops:
+        return None
+    return {"minutes": b.seconds / 60, "stopped_before": list(b.stops)}
+
+
 @contextmanager
-def recording(out, cfg, settings, resume=False, log=print):
+def recording(out, cfg, settings, resume=False, log=print, budget=None):
     """Record the steps of the diagnosis of ``cfg`` into ``out``'s checkpoint (``out``: the
     final output folder); with ``resume`` take the finished ones from it. The checkpoint
-    is removed when the block completes and kept when it is interrupted."""
+    is removed when the block completes and kept when it is interrupted or stopped at its
+    time ``budget`` [s] (None: none), so that --resume with a larger one goes on."""
     folder = checkpoint_dir(out)
     ck = _Checkpoint(folder, {"format": FORMAT, "hash": _case_hash(cfg, settings)}, resume)
+    ck.budget = _Budget(budget) if budget else None
     _OPEN.append(ck)
     ck.interrupts.install()
     try:
@@ -170,6 +204,10 @@ def recording(out, cfg, settings, resume=False, log=print):
             log(f"resumed: {ck.reused} finished steps taken from {folder}")
         if ck.interrupts.pending is not None:
             log("the interrupt came after the last recorded step: the diagnosis finished")
+        if ck.budget is not None and ck.budget.stops:
+            log(f"stopped at its time budget: the finished steps are kept in {folder}; "
+                "--resume with a larger --budget goes on from them")
+            return
         shutil.rmtree(folder, ignore_errors=True)
         try:
             os.rmdir(os.path.dirname(folder))   # DIR.partial, when nothing else is in it

@@ -35,8 +35,8 @@ from nlp.case.checks import check_start_residuals
 from nlp.diagnosis.asymmetry import story_asymmetry, with_asymmetry
 from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same,
                                       scan_secondary, score, to_refit)
-from nlp.diagnosis.checkpoint import (fingerprint, logged_step, recording, refits_step,
-                                      repolish_step, step)
+from nlp.diagnosis.checkpoint import (budget_spent, fingerprint, logged_step, recording,
+                                      refits_step, repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
 from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
@@ -66,20 +66,17 @@ from nlp.solve.search import SearchConfig
 __all__ = ["diagnose", "candidates", "SUGGESTIONS", "BIC_ACCEPT", "BIC_TIE",
            "HELD_OUT_GAIN"]
 
-# A level-dependent structure whose reference level the linear model misses by more than
-# this reduced chi-square, in the fitted windows or in their held-out shoulders, is not
-# searched for linear candidates: the contact engages at that level too, so any
-# candidate's gain is the nonlinearity's (measured on one-segment chirps of nonlinear
-# benchmark cases: reduced chi-squares of 19 to over 1,000 on the fitted windows or the
-# shoulders, and searches of 600-900 s that named appendages which did not hold on the
-# other level; see docs/method/diagnosis.md).
+# A nonlinear structure whose reference level the linear model misses by more than this
+# reduced chi-square (windows or shoulders) is not searched for linear candidates: any
+# candidate's gain is the nonlinearity's (docs/method/diagnosis.md, decision constants).
 LEVEL_MISFIT = 10.0
 STAGES = ("screen", "points", "baseline", "levels", "discrepancy", "selection", "widen", "checks", "verdict")
 BASELINE_STARTS = 20   # least scatter-search starts of the baseline: a poor optimum there
                        # would make any added parameter look useful
 
 
-def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, resume=False, ckpt_out=None):
+def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, resume=False, ckpt_out=None,
+             budget=None):
     """Diagnose a case; writes out/diagnosis.json and figures; returns the dict.
 
     Forward selection: each round adds the best accepted candidate to the model and
@@ -88,10 +85,12 @@ def diagnose(cfg, out, log=print, top=4, max_findings=3, widen=1, resume=False, 
     round, doubled for close scores). widen: the first look's windows, in half-power
     bandwidths; only a first look of 1 may widen (nlp.diagnosis.widen). Each search and
     round is kept in ckpt_out's checkpoint (default: out's; nlp.diagnosis.checkpoint) until
-    the diagnosis completes; resume takes the finished ones from it.
+    the diagnosis completes; resume takes the finished ones from it. budget [s]: no stage
+    (the model discrepancy, a round, the widened look) starts after it is spent.
     """
     with steps("diagnose", len(STAGES)) as bar, \
-            recording(ckpt_out or out, cfg, (top, max_findings, widen), resume, bar.around(log)):
+            recording(ckpt_out or out, cfg, (top, max_findings, widen), resume, bar.around(log),
+                      budget):
         log = bar.around(log)
         case = assemble(cfg)
         screening = None
@@ -153,12 +152,15 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
     the wider look stands; None when the first look stands."""
     advance("diagnose", "widen")
     if off_peak(base, sel):
+        if budget_spent("the widened look"):
+            return None
         log("the mismatch lives in the held-out shoulders more than in the fitted windows: "
             "widening the windows 3x and looking again")
         hot = unexplained(case, points.base, base.res.z, points.fit)[1]
         return widened_look(cfg, opts, nonlin, hot, None, log, case)
     state = sel.state
-    if not leaves_shoulders(base, sel, state["problem"].params.n_z - points.base.params.n_z):
+    if not leaves_shoulders(base, sel, state["problem"].params.n_z - points.base.params.n_z) \
+            or budget_spent("the widened look"):
         return None
     # what remains lies between the windows (an appendage's resonance reported as an
     # extra mode with no window on it, or later rounds' candidates worsening shoulders
@@ -283,7 +285,7 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
     terms in every later fit, with windows on them; unchanged when there are none."""
     advance("diagnose", "discrepancy")
     modes = extra_modes_in_band(case, points, base)
-    if not modes:
+    if not modes or budget_spent("the model discrepancy"):
         return case, points, base
     hot = tuple(m.f0 for m in modes)
     log("resonances the model lacks in the band: " + ", ".join(f"{f:.2f} Hz" for f in hot)
@@ -328,7 +330,8 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
             f"{pr['windows']} windows)")
     rnd, repolished = 0, 0
     while rnd < opts.max_findings:
-        if adequate(sel.state["chi"], base.nu, sel.state["held"]) and rnd > 0:
+        if adequate(sel.state["chi"], base.nu, sel.state["held"]) and rnd > 0 or \
+                budget_spent(f"selection round {rnd + 1}"):
             break
         advance("diagnose", f"selection, round {rnd + 1} of at most {opts.max_findings}",
                 step=False)

@@ -7,6 +7,7 @@ ambiguous verdicts name the measurement that would separate the candidates (SUGG
 import os
 import textwrap
 
+from nlp.diagnosis.checkpoint import budget_report
 from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
 from nlp.diagnosis.discrepancy import beyond_band, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
@@ -275,10 +276,19 @@ def _unconfirmed_statements(cfg, unconfirmed, verdict):
     return out
 
 
-def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra):
+def _budget_statement(budget):
+    """Where the diagnosis stopped at its time budget (nlp.diagnosis.checkpoint)."""
+    return (f"The diagnosis stopped at its time budget of {budget['minutes']:.3g} minutes, "
+            f"before {' and '.join(budget['stopped_before'])}: what is reported was decided, "
+            "but the candidates and looks after that point were not tried, so more may be "
+            "missing than is said here.")
+
+
+def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra,
+                        budget=None):
     """What remains unexplained, parameter changes and extra modes (those not reported as
-    model discrepancy)."""
-    out = []
+    model discrepancy); where a time budget stopped the search."""
+    out = [_budget_statement(budget)] if budget else []
     if remaining:
         out.append(REMAINING)
         st = left_statement(mismatch_left(whole))
@@ -286,7 +296,8 @@ def _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, ext
             out.append(st)
     if verdict == "ambiguous" and not sel.found and not sel.indistinct and not unconfirmed:
         out.append("The model does not explain the data within the noise, and no "
-                   "candidate family explains the mismatch.")
+                   + ("candidate tried before the budget ran out explains the mismatch."
+                      if budget else "candidate family explains the mismatch."))
     for o in inside["parameter_changes"]:
         out.append(o["statement"])
     if extra:
@@ -377,7 +388,12 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     statements += _joint_statements(nonlin, nonlin_found)
     statements += _tie_statements(sel)
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
-    statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra)
+    budget = budget_report()
+    statements += _closing_statements(verdict, sel, unconfirmed, remaining, inside, whole, extra,
+                                      budget)
+    if budget:
+        suggestions.append("run again with --resume and a larger --budget: the finished steps "
+                           "are kept")
     alts = _alternatives(found, sel.alternatives)
     result = {"case": cfg.name, "case_file": cfg.path, "verdict": verdict, "findings": findings,
               "alternatives": [public(r) for r in alts],
@@ -403,6 +419,8 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
               "provenance": provenance(cfg)}
     _optional_parts(result, screening, checks, nonlin, nonlin_found)
+    if budget:
+        result["budget"] = budget
     log_conclusion(log, result, physical_references(case))
     return Conclusion(result, case, points.base, base.res.z, improved, z_imp, base.cells,
                       cells_after, " + ".join(r["physics"] for r in found) if found else None)

@@ -123,3 +123,24 @@ def test_resume_without_a_checkpoint_is_refused(tmp_path):
     with pytest.raises(InputError, match="--resume"):
         api.diagnose(cfg, tmp_path / "out", resume=True, log=_quiet)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow  # two diagnoses of a small case: about half a minute on 2 cores
+def test_a_spent_budget_stops_the_search_and_resume_goes_on(tmp_path, uninterrupted):
+    """A budget spent before the first round: no candidate is tried, the verdict does not
+    call the model adequate, the result says where it stopped, and the steps stay; resumed
+    without a budget, the diagnosis is the uninterrupted one."""
+    cfg, ref = uninterrupted
+    out = tmp_path / "out"
+    lines = []
+    res = api.diagnose(cfg, out, log=lines.append, budget=1e-9).data
+    assert res["budget"]["stopped_before"][0] == "selection round 1"
+    assert not res["findings"] and res["verdict"] == "ambiguous"
+    assert any("time budget" in s for s in res["summary"])
+    assert any("--budget" in s for s in res["suggested_measurements"])
+    assert os.path.isdir(checkpoint_dir(out))
+    assert any("stopped at its time budget" in line for line in lines)
+    again = api.diagnose(cfg, out, resume=True, log=_quiet).data
+    assert "budget" not in again
+    assert _clean(again) == _clean(ref)
+    assert not os.path.exists(checkpoint_dir(out))
