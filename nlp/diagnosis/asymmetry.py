@@ -52,13 +52,23 @@ def model_drifts(x, fs, M, C, K, b, B):
     """
     n = x.size
     U = np.fft.rfft(x)
-    w = 2 * np.pi * np.fft.rfftfreq(n, 1.0 / fs)
-    Z = K[None] - w[:, None, None] ** 2 * M[None] + 1j * w[:, None, None] * C[None]
-    Z[0] = K                                       # the static response at omega = 0
-    q = np.linalg.solve(Z, np.broadcast_to(b, (w.size, b.size))[..., None])[..., 0]
+    q = _receptance(M, C, K, 2 * np.pi * np.fft.rfftfreq(n, 1.0 / fs), b)
     D = (q @ B) * U[:, None]                       # (n_f, n_s)
     D[0] = 0.0
     return np.fft.irfft(D, n=n, axis=0).T
+
+
+def _receptance(M, C, K, w, b):
+    """(K - w^2 M + j w C)^-1 b at each w [rad/s] (the static K^-1 b at w = 0): (n_w, n), in
+    chunks that keep the stacked matrices near 2e6 entries (a tall frame's long record)."""
+    n = b.size
+    out = np.empty((w.size, n), complex)
+    step = max(1, int(2e6 // (n * n)))
+    for a in range(0, w.size, step):
+        wc = w[a:a + step, None, None]
+        Z = K[None] - wc ** 2 * M[None] + 1j * wc * C[None]
+        out[a:a + step] = np.linalg.solve(Z, np.broadcast_to(b, (wc.shape[0], n))[..., None])[..., 0]
+    return out
 
 
 def _whitening(R):
@@ -153,11 +163,10 @@ def _refined(kept, M, C, K, B, s, theta):
         num = den = 0.0
         for t in kept:
             n = t["x"].size
-            w = 2 * np.pi * np.fft.rfftfreq(n, 1.0 / t["fs"])
-            Z = K[None] - w[:, None, None] ** 2 * M[None] + 1j * w[:, None, None] * C[None]
-            Z[0] = K
-            T = np.linalg.solve(Z, np.broadcast_to(B[:, s], (w.size, B.shape[0]))[..., None])
-            T = T[..., 0] @ B[:, s]                        # story s drift per unit load b_s
+            if "T" not in t:   # story s drift per unit load b_s
+                w = 2 * np.pi * np.fft.rfftfreq(n, 1.0 / t["fs"])
+                t["T"] = _receptance(M, C, K, w, B[:, s]) @ B[:, s]
+            T = t["T"]
             a = np.abs(t.setdefault("ds", t["d"][s]))
             E = np.fft.rfft(a - a.mean())
             D = np.fft.rfft(t["d"][s]) + T * theta * E
