@@ -17,7 +17,8 @@ from nlp.solve.identify import gauss_newton_covariance
 
 __all__ = ["BIC_ACCEPT", "BIC_TIE", "HELD_OUT_GAIN", "HELD_OUT_FLOOR", "STRONG_BIC", "held_out_ok", "SIGNIFICANCE", "AGREE", "NUISANCE",
            "LIKELIHOOD_RATIO", "ANYWHERE", "dispersion",
-           "quasi_covariance", "scaled_delta_bic", "random_effects", "effect_terms", "significance", "undetermined",
+           "quasi_covariance", "scaled_delta_bic", "random_effects", "effect_terms", "identity_terms",
+           "significance", "undetermined",
            "agree",
            "held_out_excess", "evidence", "tied"]
 
@@ -118,6 +119,16 @@ def effect_terms(family, names, values, errors):
         return [("flexibility_1/kb", flex, math.log(10) * flex * sx)]
     first = names[0]  # dm, mu, c, eta, k_ij, gain, delay: null 0
     return [(first, v[first], s[first])]
+
+
+def identity_terms(family, names, values, errors):
+    """(label, value, standard error) of the parameters that say what the effect is, beyond
+    how large (effect_terms): an appendage's frequency f_s. Two tests of one structure see
+    the same appendage, so they must agree on its frequency as on its mass; a candidate that
+    takes up each test's misfit with an oscillator tuned differently is not one appendage."""
+    if family != "secondary_oscillator":
+        return []
+    return [(n, v, s) for n, v, s in zip(names, values, errors) if _stem(n) == "f_s"]
 
 
 def _stem(name):

@@ -13,7 +13,7 @@ from nlp.case.schema import ExcitationConfig
 from nlp.errors import InputError
 from nlp.diagnosis.candidates import candidates, same, score, to_refit
 from nlp.diagnosis.evidence import (BIC_ACCEPT, agree, dispersion, effect_terms, evidence,
-                                    scaled_delta_bic, significance)
+                                    identity_terms, scaled_delta_bic, significance)
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, quasi_se, with_values)
 
@@ -107,7 +107,8 @@ def hold_on_others(others, state, accepted, log):
     fitted (starting from this test's optimum and from that test's own). The
     candidate holds there when it is accepted on its own evidence (scaled BIC
     drop >= BIC_ACCEPT, effect > 3 standard errors, no error above its value)
-    and its effect agrees with this test's within 3 combined standard errors.
+    and its effect, and what it is (an appendage's frequency: evidence.identity_terms), agree
+    with this test's within 3 combined standard errors.
     Sets r["delta_bic_others"] (the sum of the scaled BIC changes there, which
     :func:`evidence` adds, so every test of the structure weighs in the ranking)
     and r["there"] (its optimum on each test). Returns (kept, rejected, records).
@@ -134,8 +135,10 @@ def hold_on_others(others, state, accepted, log):
             there[o["label"]] = (res.z, chi2)
             sig_ok, why = significance(r["physics"], names, v2, s2, lr=(chi_o - chi2) / phi2)
             same = all(agree(a[1], a[2], b[1], b[2]) for a, b in
-                       zip(effect_terms(r["physics"], names, v1, s1),
-                           effect_terms(r["physics"], names, v2, s2)))
+                       zip(effect_terms(r["physics"], names, v1, s1)
+                           + identity_terms(r["physics"], names, v1, s1),
+                           effect_terms(r["physics"], names, v2, s2)
+                           + identity_terms(r["physics"], names, v2, s2)))
             holds = bool(d2 <= -BIC_ACCEPT and sig_ok and same)
             reason = ("" if holds else
                       f"its BIC change there is only {d2:.1f}" if d2 > -BIC_ACCEPT else

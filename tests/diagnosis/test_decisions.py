@@ -182,6 +182,55 @@ def test_finding_must_hold_on_the_other_test(tmp_path, same_structure):
         assert any("does not hold on test2.npz" in s for s in res["summary"])
 
 
+def _with_appendage(M, C, K, floor, mu, f_s, zeta=0.03):
+    """M, C, K with an oscillator of mass mu * M[floor-1, floor-1] tuned to f_s [Hz] hung
+    from `floor` (1-based), its DOF last."""
+    n = M.shape[0]
+    ms = mu * M[floor - 1, floor - 1]
+    ks, cs = ms * (2 * np.pi * f_s) ** 2, 2 * zeta * ms * 2 * np.pi * f_s
+    Ma, Ca, Ka = (np.zeros((n + 1, n + 1)) for _ in range(3))
+    Ma[:n, :n], Ca[:n, :n], Ka[:n, :n] = M, C, K
+    Ma[n, n] = ms
+    for A, v in ((Ca, cs), (Ka, ks)):
+        A[floor - 1, floor - 1] += v
+        A[n, n] += v
+        A[floor - 1, n] -= v
+        A[n, floor - 1] -= v
+    return Ma, Ca, Ka
+
+
+@pytest.mark.slow  # two whole diagnoses: 40-80 s on 2 cores
+@pytest.mark.parametrize("f_other", [5.0, 6.5], ids=["same", "retuned"])
+def test_an_appendage_must_have_one_frequency_on_both_tests(tmp_path, f_other):
+    """An appendage (mass ratio 0.1, 5 Hz) at floor 3, tested with the shaker at floors 1 and
+    2: it holds on the other test. When the other test's oscillator is tuned to 6.5 Hz, its
+    mass may agree but its frequency does not, so it is not one appendage: not confirmed."""
+    rng = np.random.default_rng(8)
+    m, k = np.array([5.0, 5.0, 5.0]), np.array([3000.0, 2800.0, 2600.0])
+    M, C, K = frame_matrices(m, k)
+    H1 = _accelerance(*_with_appendage(M, C, K, 3, 0.1, 5.0), 1, rng)[:3]
+    H2 = _accelerance(*_with_appendage(M, C, K, 3, 0.1, f_other), 2, rng)[:3]
+    write_frf(tmp_path, "test1.npz", H1)
+    write_frf(tmp_path, "test2.npz", H2)
+    cfg = write_case_yaml(tmp_path, m, k, [("test1.npz", 1), ("test2.npz", 2)],
+                          {"fixed": {f"m{i + 1}": 5.0 for i in range(3)}},
+                          {"model": "rayleigh", "zeta": 0.015})
+    res = diagnose(cfg, str(tmp_path / "out"), log=lambda *_: None)
+    checks = [c for c in res["consistency"] if c["physics"] == "secondary_oscillator"
+              and c["location"] == {"floor": 3}]
+    assert checks, res["summary"]
+    if f_other == 5.0:
+        assert checks[-1]["holds"]
+        assert any(f["physics"] == "secondary_oscillator" and f["location"] == {"floor": 3}
+                   for f in res["findings"])
+    else:
+        assert not checks[-1]["holds"]
+        here, there = checks[-1]["here"]["f_s3"], checks[-1]["there"]["f_s3"]
+        assert abs(here - there) > 3 * math.hypot(checks[-1]["here_uncertainty"]["f_s3"],
+                                                  checks[-1]["there_uncertainty"]["f_s3"])
+        assert all(f["physics"] != "secondary_oscillator" for f in res["findings"])
+
+
 def test_quasi_likelihood_scales_evidence_by_the_remaining_misfit():
     # chi-square 1000 -> 500 on 100 points with 1 added parameter and reduced chi-square 5:
     # the quasi-likelihood BIC change is -500 / 5 + ln(100)
