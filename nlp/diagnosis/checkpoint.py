@@ -44,7 +44,8 @@ from nlp.output.provenance import provenance
 from nlp.output.results import write_atomic
 
 __all__ = ["recording", "step", "logged_step", "refits_step", "repolish_step", "fingerprint",
-           "checkpoint_dir", "budget_spent", "budget_report", "FORMAT"]
+           "checkpoint_dir", "budget_spent", "budget_over", "budget_note", "budget_report",
+           "FORMAT"]
 
 FORMAT = "frf-nlp-diagnosis-checkpoint/1"
 _OPEN = []   # the checkpoint of the diagnosis running in this process (innermost last)
@@ -170,6 +171,19 @@ def budget_spent(where):
     if spent:
         b.stops.append(where)
     return spent
+
+
+def budget_over():
+    """Whether the time budget is spent now, not recorded: for a loop inside a recorded step,
+    whose value records what the loop did (False without a budget)."""
+    b = _OPEN[-1].budget if _OPEN else None
+    return b is not None and time.monotonic() - b.t0 > b.seconds
+
+
+def budget_note(where):
+    """Say that the diagnosis stopped short at ``where`` inside a recorded step."""
+    if _OPEN and _OPEN[-1].budget is not None:
+        _OPEN[-1].budget.stops.append(where)
 
 
 def budget_report():

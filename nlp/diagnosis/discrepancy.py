@@ -222,16 +222,24 @@ def resonant(pr, z, modes):
     return out
 
 
-def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log):
+def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent=lambda: False):
     """The modes kept as model discrepancy: resonant (their damping measured) and explained
     by no catalogue family as well as by a free modal term. wide: the look's points (target,
-    held-out points and their noise); pr_d, res_d: the model with every mode fitted."""
-    keep = []
+    held-out points and their noise); pr_d, res_d: the model with every mode fitted.
+    spent() true: the time budget is spent, and the modes left are kept untested (no
+    family is claimed for them). Returns (kept, untested)."""
+    keep, untested = [], []
     measured = resonant(pr_d, res_d.z, modes)
     for m in modes:
         if not any(m is x for x in measured):
             log(f"  {m.f0:.2f} Hz: its damping sits at the bound of its box: a line a bin or "
                 "two wide, not a resonance; not model discrepancy")
+            continue
+        if spent():
+            keep.append(m)
+            untested.append(m.f0)
+            log(f"  {m.f0:.2f} Hz: the time budget is spent: kept as model discrepancy without "
+                "asking the families")
             continue
         alts = explained_by(case, wide.target, pr_d, res_d, modes, m, n_fit, wide.held,
                             wide.sig_held)
@@ -244,21 +252,22 @@ def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log):
             keep.append(m)
             log(f"  {m.f0:.2f} Hz: no catalogue family explains it as well as a free modal "
                 "term: model discrepancy, kept in every fit")
-    return keep
+    return keep, untested
 
 
-def kept_discrepancy(case, wide, z_base, modes, log):
+def kept_discrepancy(case, wide, z_base, modes, log, spent=lambda: False):
     """(indices of the modes kept as model discrepancy, the optimum of the model with
-    them, or None) on the look's points with windows at the modes (wide), from the
-    baseline's optimum z_base."""
+    them or None, the frequencies kept untested because spent() said the time budget was
+    spent) on the look's points with windows at the modes (wide), from the baseline's
+    optimum z_base."""
     b0 = best_fit(wide.base, [z_base])
     pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
     n_fit = wide.base.n_used
     log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
         f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
-    keep = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log)
+    keep, untested = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent)
     kept = [i for i, m in enumerate(modes) if any(m is k for k in keep)]
-    return kept, (subset_z(pr_d, res_d.z, modes, keep) if keep else None)
+    return kept, (subset_z(pr_d, res_d.z, modes, keep) if keep else None), untested
 
 
 def subset_z(pr, z, modes, keep):

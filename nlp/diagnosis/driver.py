@@ -35,8 +35,8 @@ from nlp.case.checks import check_start_residuals
 from nlp.diagnosis.asymmetry import story_asymmetry, with_asymmetry
 from nlp.diagnosis.candidates import (ABSORBED, candidates, hot_appendages, same,
                                       scan_secondary, score, to_refit)
-from nlp.diagnosis.checkpoint import (budget_spent, fingerprint, logged_step, recording,
-                                      refits_step, repolish_step, step)
+from nlp.diagnosis.checkpoint import (budget_note, budget_over, budget_spent, fingerprint,
+                                      logged_step, recording, refits_step, repolish_step, step)
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
 from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
@@ -292,8 +292,12 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
         + ": is each one a catalogue family's, or model discrepancy?")
     wide = points_stage(cfg, case, widen, hot, log)
     # kept as a step: on a torsional frame this stage alone has taken a quarter of an hour
-    kept, z0 = logged_step("discrepancy", fingerprint(wide.fit, base.res.z, hot),
-                           lambda lg: kept_discrepancy(case, wide, base.res.z, modes, lg), log)
+    kept, z0, untested = logged_step(
+        "discrepancy", fingerprint(wide.fit, base.res.z, hot),
+        lambda lg: kept_discrepancy(case, wide, base.res.z, modes, lg, budget_over), log)
+    if untested:
+        budget_note("the families' test of the resonances at " + ", ".join(
+            f"{f:.2f}" for f in untested) + " Hz (kept as model discrepancy)")
     if not kept:
         return case, points, base
     case = replace(case, discrepancy=tuple(modes[i] for i in kept))

@@ -172,3 +172,25 @@ def test_a_term_whose_damping_sits_at_its_bound_is_not_a_resonance(monkeypatch):
     monkeypatch.setattr(D, "quasi_se", lambda pr, z: (se, None))
     kept = D.resonant(Pr(), None, modes)
     assert [md.f0 for md in kept] == [8.0, 9.0]
+
+
+def test_a_spent_budget_keeps_the_untested_resonances_and_claims_no_family(monkeypatch):
+    """kept_modes with the time budget spent after the first resonance: that one is offered
+    to the families (here one explains it), the rest are kept as model discrepancy without
+    being offered, and returned as untested."""
+    import nlp.diagnosis.discrepancy as D
+
+    modes = [ExtraMode(6.0 + j, ("a1",)) for j in range(3)]
+    asked = []
+    monkeypatch.setattr(D, "resonant", lambda pr, z, ms: list(ms))
+    monkeypatch.setattr(D, "explained_by", lambda case, tg, pr, res, ms, e, *a, **kw:
+                        asked.append(e.f0) or [{"physics": "secondary_oscillator",
+                                                "location": {"floor": 1},
+                                                "restriction": {"scaled_rise": 1.0,
+                                                                "limit": 9.0}}])
+    calls = iter([False, True, True])
+    wide = type("W", (), {"target": None, "held": None, "sig_held": None})
+    keep, untested = D.kept_modes(None, wide, None, type("R", (), {"z": None}), modes, 100,
+                                  lambda *a: None, spent=lambda: next(calls))
+    assert asked == [6.0]
+    assert [m.f0 for m in keep] == [7.0, 8.0] and untested == [7.0, 8.0]
