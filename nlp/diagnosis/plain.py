@@ -132,8 +132,14 @@ def paragraph(d, refs=None):
     parts = []
     if found:
         what = [f"{finding_title(f)}, {_size(f, refs)}" for f in found]
-        parts.append("The model leaves out " + "; and ".join(what) + ". " + ("With it added, "
-                     if len(found) == 1 else "With these added, ") + _lower(_fit_words(fit)))
+        # a story stiffer one way (nlp.diagnosis.asymmetry) is no term of the linear model
+        added = [f for f in found if (f.get("mechanism") or {}).get("kind") != "asymmetric"]
+        parts.append("The model leaves out " + "; and ".join(what) + ". " + (
+            ("With it added, " if len(added) == 1 else "With these added, ")
+            + _lower(_fit_words(fit)) if added else
+            "No linear model can take it up, so the linear fit stays as it was (reduced "
+            f"chi-square {fmt_sig(b.get('reduced_chi2'))}, held-out "
+            f"{fmt_sig(b.get('held_out_chi2'))})."))
     else:
         parts.append("The model does not explain the data, and the data cannot tell which "
                      "physics is missing" + (": " + _join([finding_title(f) for f in

@@ -173,3 +173,15 @@ def test_receptance_in_chunks_is_the_direct_solve():
     for i in (0, 1, 4999, 5000, 12000):
         want = np.linalg.solve(Kr - w[i] ** 2 * Mr + 1j * w[i] * Cr, b)
         np.testing.assert_allclose(got[i], want, rtol=1e-10)
+
+
+def test_the_paragraph_does_not_say_an_asymmetric_story_was_added_to_the_fit():
+    from nlp.diagnosis.asymmetry import asymmetric_finding
+    from nlp.diagnosis.plain import paragraph
+    res = {"best": 0, "z": [30.0, 2.0], "se": [5.0, 5.0], "gap": 800.0, "bins": 900,
+           "refined": {"kappa": 300.0, "iterations": 4, "converged": True}}
+    f = asymmetric_finding(res, 0, 4000.0)
+    text = paragraph({"verdict": "partly_explained", "findings": [f],
+                      "fit": {"before": {"reduced_chi2": 1.53, "held_out_chi2": 9.26},
+                              "after": {"reduced_chi2": 1.53, "held_out_chi2": 9.26}}})
+    assert "With it added" not in text and "stays as it was" in text and "1.53" in text
