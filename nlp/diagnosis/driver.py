@@ -49,14 +49,15 @@ from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
 from nlp.diagnosis.look import Baseline, Checks, Options, Points, Seed, Selection
 from nlp.diagnosis.nuisance import hold_open_nuisance, why_refused
-from nlp.diagnosis.others import hold_on_others, refits_of_others, setup_others
+from nlp.diagnosis.others import final_records, hold_on_others, refits_of_others, setup_others
 from nlp.diagnosis.reciprocity import reciprocal_pairs, refute_gains
 from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen_tests, setup_error_result
 from nlp.diagnosis.spread import chi2_spread
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
-from nlp.diagnosis.widen import WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak
+from nlp.diagnosis.widen import (WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak,
+                                 refuted_on_wider)
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.progress import advance, steps
 from nlp.output.results import write_json
@@ -144,6 +145,8 @@ def widened_look(cfg, opts, nonlin, hot, seed, log, first):
     base = baseline_stage(cfg, case, points, seed, log)
     level_bound = level_stage(base, nonlin, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, seed, opts, log)
+    gone = refuted_on_wider(sel, base.held) if seed is not None else None
+    sel.unconfirmed += [gone] if gone else []
     return conclude(cfg, case, points, base, sel, nonlin, level_bound, None, log)
 
 
@@ -476,7 +479,7 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         loss = loss_check(case, state, phase["findings"] if phase else [], log)
         if loss:
             inside["findings"] += loss["findings"]
-    consistency, unconfirmed = _final_records(sel)
+    consistency, unconfirmed = final_records(sel)
     whole = whole_band(case, points.base, base.res.z, state["problem"], state["z"], points.fit)
     alone = []
     if cfg.data.tests and sel.found:
@@ -484,17 +487,3 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         alone = alone_fits(cfg, case, case.f[points.fit], sel.found, state, log,
                            sel.reciprocity)
     return Checks(inside, phase, loss, whole, consistency, unconfirmed, alone)
-
-
-def _final_records(sel):
-    """The other tests' records of the final findings and of what failed there, and each
-    unconfirmed candidate once, from its last test (made on top of the final findings)."""
-    final = {(r["physics"], repr(r["location"])) for r in sel.found}
-    last = {(c["test"], c["physics"], repr(c["location"])): c for c in sel.consistency}
-    consistency = [c for c in last.values()   # one record per test and candidate, the last
-                   if (c["physics"], repr(c["location"])) in final or not c["holds"]]
-    seen = set(final)
-    unconfirmed = [r for r in reversed(sel.unconfirmed)
-                   if (r["physics"], repr(r["location"])) not in seen
-                   and not seen.add((r["physics"], repr(r["location"])))][::-1]
-    return consistency, unconfirmed

@@ -161,3 +161,17 @@ def hold_on_others(others, state, accepted, log):
             r["why_not"] = "does not hold on another test of the structure"
             rejected.append(r)
     return sorted(kept, key=evidence), rejected, records
+
+
+def final_records(sel):
+    """The other tests' records of the final findings and of what failed there, and each
+    unconfirmed candidate once, from its last test (made on top of the final findings)."""
+    final = {(r["physics"], repr(r["location"])) for r in sel.found}
+    last = {(c["test"], c["physics"], repr(c["location"])): c for c in sel.consistency}
+    consistency = [c for c in last.values()   # one record per test and candidate, the last
+                   if (c["physics"], repr(c["location"])) in final or not c["holds"]]
+    seen = set(final)
+    unconfirmed = [r for r in reversed(sel.unconfirmed)
+                   if (r["physics"], repr(r["location"])) not in seen
+                   and not seen.add((r["physics"], repr(r["location"])))][::-1]
+    return consistency, unconfirmed

@@ -7,7 +7,8 @@ repeated over windows 3x wider (WIDEN) when
 * nothing is found and the shoulders carry the mismatch (off_peak), or
 * one finding explains the windows but leaves the shoulders above HELD_LEFT
   (leaves_shoulders); that widened look stands only if it keeps the finding
-  (keeps_findings).
+  (keeps_findings), or refutes it: refitted there, it predicts the wider shoulders worse
+  than the model without it (refuted_on_wider).
 
 A widened look also fits a window of HOT_WINDOW around each of the largest misfits off
 the windows (band.hot_spots) and the resonances the model lacks (hot_windows).
@@ -69,6 +70,23 @@ def leaves_shoulders(base, sel, k_now):
 
 
 def keeps_findings(result, found):
-    """Whether a widened look's result names every finding of the first look."""
+    """Whether a widened look's result names every finding of the first look, or refutes
+    each one it does not name (refuted_on_wider): then the wider look stands too."""
     keys = {(f["physics"], repr(f["location"])) for f in result.get("findings", [])}
-    return all((r["physics"], repr(r["location"])) in keys for r in found)
+    gone = {(f["physics"], repr(f["location"])) for f in result.get("unconfirmed", [])
+            if "widened_look" in f.get("evidence", {})}
+    return all((r["physics"], repr(r["location"])) in keys | gone for r in found)
+
+
+def refuted_on_wider(sel, held_without):
+    """The first look's finding as a seeded widened look re-proved it first (sel.tried[0]),
+    when it was refused there with held-out shoulders worse than the wider baseline's
+    (held_without): it then predicts the data no fit used worse than the model without it,
+    so it is not a finding (listed unconfirmed, with both figures). None otherwise: a
+    finding refused on other grounds (a tie, a cut short of 20 %) keeps the first look."""
+    if not sel.tried or sel.tried[0]["accepted"] or sel.tried[0]["held_out"] <= held_without:
+        return None
+    r = sel.tried[0]
+    return dict(r, widened={"held_out": r["held_out"], "held_out_without": held_without},
+                why_not="on windows 3x wider it predicts the held-out shoulders worse than the "
+                        "model without it")

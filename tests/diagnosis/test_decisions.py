@@ -1041,3 +1041,22 @@ def test_a_refusal_names_its_reason_and_the_parameter_on_its_bound():
     assert why_refused({**r, "at_bound": False, "delta_bic": -4.0}).startswith(
         "its scaled BIC change -4.0 is above")
     assert why_refused({**r, "significant": False, "why_not": "x"}) == "x"
+
+
+def test_a_widened_look_refutes_a_finding_that_predicts_its_shoulders_worse():
+    """The first look's finding, re-proved first on 3x windows: refused there with held-out
+    shoulders worse than the wider model without it, it is refuted (the wider look stands,
+    the finding is unconfirmed); refused while leaving them no worse, or accepted, the first
+    look's rule (keep every finding) still decides."""
+    found = [{"physics": "secondary_oscillator", "location": {"floor": 4}}]
+    ref = dict(_result("secondary_oscillator", {"floor": 4}, 500.0), accepted=False,
+               held_out=24.5, score=0.0, delta_bic=-800.0,
+               parameters={"mu4": 0.04, "f_s4": 3.5}, uncertainty={"mu4": 0.005, "f_s4": 0.15})
+    sel = SimpleNamespace(tried=[ref])
+    gone = W.refuted_on_wider(sel, 6.3)
+    assert gone["widened"] == {"held_out": 24.5, "held_out_without": 6.3}
+    result = {"findings": [], "unconfirmed": [public(gone)]}
+    assert W.keeps_findings(result, found)
+    assert W.refuted_on_wider(SimpleNamespace(tried=[dict(ref, held_out=6.0)]), 6.3) is None
+    assert W.refuted_on_wider(SimpleNamespace(tried=[dict(ref, accepted=True)]), 6.3) is None
+    assert not W.keeps_findings({"findings": [], "unconfirmed": []}, found)
