@@ -3,8 +3,8 @@
 A restoring force that is odd in the story drift d, phi(-d) = -phi(d) (a linear spring, a
 softening or hardening joint, a symmetric contact stop, friction), keeps the response to a
 symmetric input symmetric. One stiffer on one side than on the other has an even part
-phi_e(d) = (phi(d) + phi(-d)) / 2; for a bilinear story, k when closed and (1 - delta) k when
-open, phi_e = -(delta k / 2) |d|. Such a story is positively homogeneous (phi(a d) = a phi(d)
+phi_e(d) = (phi(d) + phi(-d)) / 2; for a bilinear story, k when closed (d >= 0) and
+(1 - delta) k when open (d < 0), phi_e = (delta k / 2) |d|. Such a story is positively homogeneous (phi(a d) = a phi(d)
 for a > 0): its equivalent linear stiffness is the same at every level, so the comparison of
 levels (:mod:`nlp.diagnosis.levels`) cannot see it, and neither can any linear fit.
 
@@ -13,13 +13,14 @@ carry, beyond the linear response H U,
 
     R_c(omega) = theta G_c(omega) b_s E_s(omega) + noise,   E_s = FFT(|d_s| - mean |d_s|),
 
-one real coefficient theta per story (theta = -delta k / 2 for the bilinear story; any even
-part of an odd force is zero, so a symmetric joint gives theta = 0 in expectation: the even
+one real coefficient theta per story, a load on the structure, so theta = -kappa for a
+restoring force kappa |d| (kappa = delta k / 2 for the bilinear story; any even part of an
+odd force is zero, so a symmetric joint gives theta = 0 in expectation: the even
 regressor |d| is uncorrelated with every odd function of a symmetric process). Each story's
 theta is the weighted least-squares estimate over the record's bins, each channel whitened by
 the local level of its residual (a running median of |R|^2 over ``HALF_WIDTH`` bins each side,
 over ln 2: the median of an exponential variate), so the residual's own model error widens the
-estimate's error instead of biasing it. Units: theta [N/m], z = theta / SE.
+estimate's error instead of biasing it. Reported: kappa [N/m] and z = kappa / SE per story.
 """
 
 import math
@@ -86,9 +87,9 @@ def asymmetry(tests, M, C, K, B, channels, excitation, f_low):
         ``__input__``) and ``H_model(omega) -> (n_ch, N)``, the linear model's channel FRFs;
     M, C, K : the linear model; B : (n, n_s) story patterns (columns);
     excitation : (kind, force_dof, r) of the case's target; f_low [Hz]: lowest fitted
-    frequency. Returns theta [N/m], se, z, drop (chi-square units) per story, the bins used,
-    and ``best`` (index, or None when the evidence does not decide: ASYMMETRY_Z,
-    ASYMMETRY_GAP).
+    frequency. Returns kappa [N/m], se, z, drop (chi-square units) per story, the bins used,
+    ``best`` (index, or None when the evidence does not decide: ASYMMETRY_Z, ASYMMETRY_GAP)
+    and, when decided, ``refined`` (the story's kappa with its own even force in its drift).
     """
     kind, force_dof, r = excitation
     # drift patterns (entries +-1 for a shear frame's story): B^T q is the story's drift
