@@ -309,8 +309,9 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
 
 
 def level_stage(base, nonlin, log):
-    """Whether the structure is level-dependent and the linear model misses the reference
-    level by more than LEVEL_MISFIT: then no linear candidate is searched on it."""
+    """Whether the structure is nonlinear (level-dependent, or a story stiffer one way) and
+    the linear model misses the reference level by more than LEVEL_MISFIT: then no linear
+    candidate is searched on it."""
     level_bound = bool(nonlin and (nonlin["found"] or nonlin.get("asymmetric"))
                        and max(base.chi / base.nu, base.held) > LEVEL_MISFIT)
     if level_bound:
