@@ -18,7 +18,7 @@ sys.path.insert(0, ROOT)
 
 from nlp.case.load import load_case  # noqa: E402
 from nlp.diagnosis.asymmetry import asymmetry, bilinear_delta  # noqa: E402
-from nlp.diagnosis.harmonics import story_vectors  # noqa: E402
+from nlp.diagnosis.harmonics import story_matrix  # noqa: E402
 from nlp.diagnosis.levels import level_fit  # noqa: E402
 from nlp.diagnosis.others import assemble_other  # noqa: E402
 
@@ -41,11 +41,8 @@ def one(path):
         if c is not None:
             fits.append({"case": c, "problem": ref["problem"], "z": ref["z"]})
     c = ref["case"]
-    bs = story_vectors(c.model.K_infl)
     M, K, C = ref["problem"].matrices(ref["z"])
-    import numpy as np
-    B = np.column_stack([v for v in bs if v is not None])
-    B = np.vstack([B, np.zeros((M.shape[0] - c.model.n, B.shape[1]))])
+    B = story_matrix(c.model, M.shape[0])[1]
     tests = [{"records": f["case"].records,
               "H_model": (lambda w, f=f: ref["problem"].channel_frfs(ref["z"], w))}
              for f in fits if f["case"].records is not None]

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy.ndimage import median_filter
 
-from nlp.diagnosis.harmonics import force_frfs, story_vectors
+from nlp.diagnosis.harmonics import force_frfs, story_matrix
 from nlp.diagnosis.others import assemble_other
 from nlp.frf.reference import load_vector
 
@@ -209,13 +209,12 @@ def story_asymmetry(cfg, case, problem, z, log):
     None}; None without time records or story patterns (FE models) or for a sparse model."""
     if case.records is None:
         return None
-    bs = story_vectors(case.model.K_infl)
-    groups = [j for j, b in enumerate(bs) if b is not None]
     M, K, C = problem.matrices(z)
-    if not groups or not all(isinstance(A, np.ndarray) for A in (M, K, C)):
+    if not all(isinstance(A, np.ndarray) for A in (M, K, C)):
         return None
-    B = np.column_stack([bs[j] for j in groups])
-    B = np.vstack([B, np.zeros((M.shape[0] - case.model.n, B.shape[1]))])
+    groups, B = story_matrix(case.model, M.shape[0])
+    if B is None:
+        return None
     records = [case.records] + [c.records for c, _ in
                                 (assemble_other(cfg, p, lambda *a, **k: None)
                                  for p in cfg.data.level_files) if c is not None]

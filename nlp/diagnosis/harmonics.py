@@ -32,7 +32,7 @@ from scipy.signal import get_window
 from nlp.frf.forms import POWER
 from nlp.frf.reference import BASE_DOF
 
-__all__ = ["story_vectors", "force_frfs", "out_of_band", "harmonic_location",
+__all__ = ["story_vectors", "story_matrix", "force_frfs", "out_of_band", "harmonic_location",
            "MIN_EXCESS_Z", "MIN_SHARE", "MIN_GAP"]
 
 MIN_EXCESS_Z = 10.0  # out-of-band power above noise, in standard deviations of its noise-only sum
@@ -50,6 +50,18 @@ def story_vectors(K_groups, tol=1e-9):
         big = np.abs(w) > tol * max(float(np.max(np.abs(w))), 1e-300)
         out.append(v[:, int(np.argmax(np.abs(w)))] if big.sum() == 1 else None)
     return out
+
+
+def story_matrix(model, n_dof):
+    """(groups, B): the stiffness groups with a single force pattern (story_vectors) and
+    their patterns as the columns of B, padded with zeros to n_dof (a model's extra DOFs:
+    appendages, a base); (groups, None) when there is none (an FE model's groups)."""
+    bs = story_vectors(model.K_infl)
+    groups = [j for j, b in enumerate(bs) if b is not None]
+    if not groups:
+        return groups, None
+    B = np.column_stack([bs[j] for j in groups])
+    return groups, np.vstack([B, np.zeros((n_dof - model.n, B.shape[1]))])
 
 
 def force_frfs(M, C, K, omega, B, channels):

@@ -15,7 +15,7 @@ from scipy.linalg import null_space
 from nlp.case.assemble import assemble
 from nlp.diagnosis.fitting import (best_fit, continued, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, normalised, quasi_se, scatter_best)
-from nlp.diagnosis.harmonics import harmonic_location, story_vectors
+from nlp.diagnosis.harmonics import harmonic_location, story_matrix
 from nlp.diagnosis.level_kind import with_kind
 from nlp.diagnosis.materiality import joint_gate
 from nlp.diagnosis.others import assemble_other
@@ -463,14 +463,10 @@ def _harmonics(cfg, fits):
     ref = fits[0]
     if ref["case"].records is None:
         return None
-    bs = story_vectors(ref["case"].model.K_infl)
-    groups = [j for j, b in enumerate(bs) if b is not None]
-    if not groups:
-        return None
     M, K, C = ref["problem"].matrices(ref["z"])
-    nd = ref["case"].model.n
-    B = np.column_stack([bs[j] for j in groups])
-    B = np.vstack([B, np.zeros((M.shape[0] - nd, B.shape[1]))])
+    groups, B = story_matrix(ref["case"].model, M.shape[0])
+    if B is None:
+        return None
     tests = [{"records": f["case"].records, "nperseg": cfg.data.nperseg, "window": cfg.data.window,
               "H_model": (lambda w, f=f: f["problem"].channel_frfs(f["z"], w))}
              for f in fits if f["case"].records is not None]
