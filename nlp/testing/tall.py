@@ -34,7 +34,6 @@ class TallFrame:
 def modal_receptance(m, k, omega, dofs, a0, a1):
     """Relative-displacement receptance [m/(m/s^2)] of floors ``dofs`` (0-based) per unit
     ground acceleration, by modal superposition over all n undamped modes."""
-    n = k.size
     diag = (k + np.append(k[1:], 0.0)) / m
     off = -k[1:] / np.sqrt(m[:-1] * m[1:])
     lam, V = sla.eigh_tridiagonal(diag, off)
@@ -70,17 +69,19 @@ def tall_frame(n, seed=0, noise=NOISE, points_per_storey=POINTS_PER_STOREY):
     return TallFrame(n, m, k, a0, a1, m_nom, k_nom, f, H, dofs, noise)
 
 
-def case_dict(frame, data_file="frf.npz", frequencies=None):
-    """The case YAML (as a dict) of a tall frame: per-storey masses and stiffnesses free
-    (floor 1 weighed), Rayleigh damping from 2 % at modes 1 and n."""
+def case_dict(frame, data_file="frf.npz", frequencies=None, weighed="first"):
+    """The case YAML (as a dict) of a tall frame: per-storey stiffnesses free, Rayleigh
+    damping from 2 % at modes 1 and n; floor 1 weighed (``weighed="first"``, the other
+    masses free) or every floor weighed (``"all"``, masses fixed at the truth)."""
     n = frame.n
+    floors = range(n) if weighed == "all" else range(1)
     return {
         "name": f"tall_shear_frame_{n}",
         "description": f"{n}-storey shear frame, per-storey parameters, independent modal-sum data",
         "model": {"type": "shear_frame", "masses": [round(float(v), 3) for v in frame.m_nom],
                   "stiffnesses": [round(float(v), 1) for v in frame.k_nom]},
         "parameters": {"stiffness_bounds": [-0.5, 1.0], "mass_bounds": [-0.5, 1.0],
-                       "fixed": {"m1": round(float(frame.m[0]), 3)}},
+                       "fixed": {f"m{i + 1}": round(float(frame.m[i]), 3) for i in floors}},
         "damping": {"model": "rayleigh", "zeta": ZETA},
         "excitation": {"type": "ground"},
         "data": {"file": data_file, "window": "none",

@@ -59,3 +59,22 @@ def test_a_local_minimum_is_flagged(tmp_path):
         doc = json.load(fh)
     kinds = {f["kind"]: f for f in doc["flags"]}
     assert "misfit_above_noise" in kinds and kinds["misfit_above_noise"]["ratio"] > 10
+
+
+def test_every_floor_weighed_frees_only_the_stiffnesses(tmp_path):
+    # masses known (fixed at the truth): n stiffnesses and the 2 Rayleigh coefficients
+    n = 16
+    fr = tall_frame(n, seed=0)
+    np.savez_compressed(tmp_path / "frf.npz", f=fr.f, H=fr.H)
+    path = tmp_path / "case.yaml"
+    path.write_text(yaml.safe_dump(case_dict(fr, weighed="all"), sort_keys=False))
+    case = assemble(load_case(str(path)))
+    free = [p for p in case.params.params if not p.fixed]
+    assert sorted({p.group for p in free}) == ["damping", "stiffness"] and len(free) == n + 2
+    problem = build_problem(case)
+    res = problem.solve()
+    assert res.success
+    m_fit = np.array([p.nominal * (1 + t) for p, t in zip(case.params.params, problem.theta(res.z))
+                      if p.group == "mass"])
+    assert np.allclose(m_fit, fr.m, rtol=1e-3)
+    assert np.max(np.abs(_stiffness(case, problem.theta(res.z)) / fr.k - 1)) < 0.01
