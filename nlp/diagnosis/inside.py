@@ -36,7 +36,10 @@ def inside_model_class(cfg, case, state, absorbed, log):
     decomposition, dampers = _damping_decomposition(case, state, shear, log)
     findings += [_damper_finding(d) for d in dampers]
     ratios = decomposition["story_ratio_c_over_k"] if decomposition else None
-    informative = _absorbed_indicated(pr, theta, se, sigmas, ratios, absorbed)
+    found = [(f["physics"], f["location"]) for f in findings]
+    # a hypothesis that is already a finding here would only repeat it
+    informative = [h for h in _absorbed_indicated(pr, theta, se, sigmas, ratios, absorbed)
+                   if (h["physics"], h["location"]) not in found]
     if outside:
         log("  outside the prior: " + ", ".join(f"{o['parameter']} {o['z_prior']:+.1f} sigma"
                                                for o in outside))
