@@ -26,8 +26,6 @@ import time
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 
-import numpy as np  # noqa: E402
-
 from nlp.case.assemble import assemble  # noqa: E402
 from nlp.case.load import load_case  # noqa: E402
 from nlp.case.parameters import dashpot_damping  # noqa: E402
@@ -36,13 +34,11 @@ from nlp.diagnosis.families import HystereticDamping  # noqa: E402
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se  # noqa: E402
 from nlp.diagnosis.inside import dashpot_refit  # noqa: E402
 
-
 def truth_of(path):
     with open(os.path.join(path, "truth.json")) as fh:
         t = json.load(fh)
     return t.get("category"), [f"{e['family']} {e.get('location')} {e.get('parameters')}"
                                for e in t.get("effects", [])]
-
 
 def with_loss(case, state, st, fam):
     """The structured model plus one loss, refitted from the structured optimum."""
@@ -59,7 +55,6 @@ def with_loss(case, state, st, fam):
     res = best_fit(pd, starts)
     se, _ = quasi_se(pd, res.z)
     return pd, res, float(pd.theta(res.z)[-1]), float(se[-1])
-
 
 def one(path, quiet=lambda *a, **k: None):
     t0 = time.perf_counter()
@@ -92,7 +87,6 @@ def one(path, quiet=lambda *a, **k: None):
               f"{'STANDS' if z > 3 + bias and drop > 10 + math.log(pr.n_used) else '-'}")
     print(f"   {time.perf_counter() - t0:.0f} s")
     sys.stdout.flush()
-
 
 if __name__ == "__main__":
     for p in sys.argv[1:]:
