@@ -75,8 +75,8 @@ def _prior_findings(outside, shear):
 
 
 def _damping_decomposition(case, state, shear, log):
-    """The fitted general C as a0 M + story dashpots (judged on the structured refit when
-    it fits as well): (decomposition, concentrated dampers)."""
+    """The fitted general C as a0 M + story dashpots, judged on the structured refit
+    beyond the bias its misfit can cause: (decomposition, concentrated dampers)."""
     decomposition, dampers = None, []
     if isinstance(case.damping, GeneralDamping) and shear:
         structured = dashpot_refit(case, state)
@@ -87,13 +87,13 @@ def _damping_decomposition(case, state, shear, log):
             decomposition = {"story_ratio_c_over_k": None}
         decomposition["structured_refit"] = {k: structured[k] for k in
                                              ("chi2", "chi2_general", "excess", "limit", "fits")}
-        dampers = _beyond_misfit(dampers, structured, log)
         log(f"  damping as a0 M + story dashpots: chi-square {structured['chi2']:.1f} against "
             f"{structured['chi2_general']:.1f} with a general C (scaled excess "
             f"{structured['excess']:.1f}, limit {structured['limit']:.1f}, "
             + ("fits as well" if structured["fits"] else "the general C fits better")
             + ("): dampers judged on it" if structured["cov"] is not None else
                "): the refit failed, no damper is judged"))
+        dampers = _beyond_misfit(dampers, structured, log)
     return decomposition, dampers
 
 
