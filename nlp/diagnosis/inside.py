@@ -236,8 +236,8 @@ def dashpot_refit(case, state):
     # dampers are judged on the structured refit even where the general C fits better: on
     # lab records the general C also takes up misfit that is not damping (chains, table),
     # and requiring the family to fit as well refused every lab damper; the standard
-    # errors carry the refit's own dispersion, and the ratio and story-zeta gates of
-    # damper_check hold the nulls (docs/method/diagnosis.md, "Dampers")
+    # errors carry the refit's own dispersion, and a damper must stand beyond the bias
+    # the family's misfit can cause (_beyond_misfit; docs/method/diagnosis.md, "Dampers")
     cov = quasi_se(pd, res.z)[1] if solved else None
     return {"problem": pd, "z": res.z, "cov": cov, "chi2": float(2 * res.f),
             "chi2_general": float(state["chi"]), "excess": float(excess), "limit": limit,

@@ -342,7 +342,7 @@ class DashpotDamping:
         # a concentrated damper of s times its story's share of the structure's damping
         # ratio is c = s 2 zeta sqrt(k m) = s (w_1 + w_n) / w_story times the Rayleigh
         # dashpot a1 k; w_n / w_1 of an n-storey shear frame reaches about 4 n / pi, so
-        # 30 (the general factor) capped dampers of s = 4 on five storeys
+        # 30 (the general factor) can cap a damper of s = 4 on five storeys
         k = 1 + len(self.K_groups)
         return np.zeros(k), np.full(k, factor)
 
