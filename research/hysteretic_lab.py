@@ -15,6 +15,8 @@ nlp.diagnosis.inside makes it), then the structured model plus a loss (global, t
 story) refitted from the structured optimum: its scaled chi-square drop (phi of the
 structured refit), eta with its quasi-likelihood standard error, and the bias bound
 sqrt(excess) of the structured-plus-loss model against the general C (inside._beyond_misfit).
+Log magnitudes only (the case's residual): the diagnosis's loss check adds the phase off
+resonance, which these figures leave out (docs/method/diagnosis.md, section 9).
 """
 
 import json
