@@ -48,9 +48,10 @@ def modal_receptance(m, k, omega, dofs, a0, a1):
     return out, wr
 
 
-def tall_frame(n, seed=0, noise=NOISE, points_per_storey=POINTS_PER_STOREY):
+def tall_frame(n, seed=0, noise=NOISE, points_per_storey=POINTS_PER_STOREY, sensors=4):
     """An n-storey frame (masses 1000 kg, stiffness tapering 2e6 -> 1e6 N/m up the height
-    with +-5 % scatter), its nominal model and noisy receptances at 4 floors."""
+    with +-5 % scatter), its nominal model and noisy receptances at ``sensors`` floors
+    spread evenly from floor 1 to the roof."""
     rng = np.random.default_rng([seed, n])
     m = 1000.0 * (1 + rng.uniform(-0.05, 0.05, n))
     k = 2.0e6 * np.linspace(1.0, 0.5, n) * (1 + rng.uniform(-0.05, 0.05, n))
@@ -59,7 +60,7 @@ def tall_frame(n, seed=0, noise=NOISE, points_per_storey=POINTS_PER_STOREY):
     w1, wn = np.sqrt(lam[0]), np.sqrt(lam[-1])
     a0, a1 = 2 * ZETA * w1 * wn / (w1 + wn), 2 * ZETA / (w1 + wn)
     f = np.linspace(0.5 * w1, 1.1 * wn, points_per_storey * n) / (2 * np.pi)
-    dofs = sorted(set(np.linspace(0, n - 1, 4).round().astype(int).tolist()))
+    dofs = sorted(set(np.linspace(0, n - 1, sensors).round().astype(int).tolist()))
     H, _ = modal_receptance(m, k, 2 * np.pi * f, dofs, a0, a1)
     e = (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
     H = H * (1 + noise * e)

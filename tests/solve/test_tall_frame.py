@@ -78,3 +78,23 @@ def test_every_floor_weighed_frees_only_the_stiffnesses(tmp_path):
                       if p.group == "mass"])
     assert np.allclose(m_fit, fr.m, rtol=1e-3)
     assert np.max(np.abs(_stiffness(case, problem.theta(res.z)) / fr.k - 1)) < 0.01
+
+
+def test_a_receptance_at_every_floor_determines_masses_and_stiffnesses(tmp_path):
+    # one point a storey at every floor: 2 n + 1 free parameters fitted to the truth
+    n = 16
+    fr = tall_frame(n, seed=0, sensors=n, points_per_storey=1)
+    assert fr.dofs == list(range(n)) and fr.H.shape == (n, n)
+    np.savez_compressed(tmp_path / "frf.npz", f=fr.f, H=fr.H)
+    path = tmp_path / "case.yaml"
+    path.write_text(yaml.safe_dump(case_dict(fr), sort_keys=False))
+    case = assemble(load_case(str(path)))
+    assert sum(not p.fixed for p in case.params.params) == 2 * n + 1
+    problem = build_problem(case)
+    res = problem.solve()
+    assert res.success
+    theta = problem.theta(res.z)
+    m_fit = np.array([p.nominal * (1 + t) for p, t in zip(case.params.params, theta)
+                      if p.group == "mass"])
+    assert np.max(np.abs(m_fit / fr.m - 1)) < 0.01
+    assert np.max(np.abs(_stiffness(case, theta) / fr.k - 1)) < 0.01
