@@ -44,14 +44,24 @@ def truth_of(path):
     return t.get("category"), out
 
 
-def one(path, quiet=lambda *a, **k: None):
-    t0 = time.perf_counter()
+def _quiet(*args, **kwargs):
+    pass
+
+
+def structured_of(path, quiet=_quiet):
+    """A lab case's baseline as `frf-nlp diagnose` fits it (its windows, 20 starts) and its
+    story-dashpot refit: (case, points, base, state, structured)."""
     cfg = load_case(os.path.join(path, "case.yaml"))
     case = assemble(cfg)
     points = points_stage(cfg, case, 1, (), quiet)
     base = baseline_stage(cfg, case, points, None, quiet)
     state = {"problem": points.base, "z": base.res.z, "chi": base.chi, "current": []}
-    st = dashpot_refit(case, state)
+    return case, points, base, state, dashpot_refit(case, state)
+
+
+def one(path, quiet=_quiet):
+    t0 = time.perf_counter()
+    case, points, base, state, st = structured_of(path, quiet)
     cat, truth = truth_of(path)
     name = f"{os.path.basename(os.path.dirname(path.rstrip('/')))}/{os.path.basename(path.rstrip('/'))}"
     print(f"{name} [{cat}] truth {truth or '-'}; baseline chi2/nu {base.chi / base.nu:.2f}; "

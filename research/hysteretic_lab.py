@@ -28,13 +28,12 @@ import time
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 
-from nlp.case.assemble import assemble  # noqa: E402
-from nlp.case.load import load_case  # noqa: E402
 from nlp.case.parameters import dashpot_damping  # noqa: E402
-from nlp.diagnosis.driver import baseline_stage, points_stage  # noqa: E402
 from nlp.diagnosis.families import HystereticDamping  # noqa: E402
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se  # noqa: E402
-from nlp.diagnosis.inside import dashpot_refit  # noqa: E402
+
+from damper_lab import structured_of  # noqa: E402  (research/, this script's folder)
+
 
 def truth_of(path):
     with open(os.path.join(path, "truth.json")) as fh:
@@ -58,14 +57,10 @@ def with_loss(case, state, st, fam):
     se, _ = quasi_se(pd, res.z)
     return pd, res, float(pd.theta(res.z)[-1]), float(se[-1])
 
-def one(path, quiet=lambda *a, **k: None):
+
+def one(path):
     t0 = time.perf_counter()
-    cfg = load_case(os.path.join(path, "case.yaml"))
-    case = assemble(cfg)
-    points = points_stage(cfg, case, 1, (), quiet)
-    base = baseline_stage(cfg, case, points, None, quiet)
-    state = {"problem": points.base, "z": base.res.z, "chi": base.chi, "current": []}
-    st = dashpot_refit(case, state)
+    case, points, base, state, st = structured_of(path)
     pr = points.base
     nu = max(pr.n_used - st["problem"].params.n_z, 1)
     phi = max(st["chi2"] / nu, 1.0)
