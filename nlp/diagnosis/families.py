@@ -429,7 +429,9 @@ class ExtraMode:
 
     @property
     def tag(self):
-        return f"x{round(10 * self.f0)}"
+        # to the mHz: at 0.1 Hz two terms 0.02 Hz apart (one mode read on two channels, or
+        # two close modes) shared their parameter names
+        return f"x{round(1000 * self.f0)}"
 
     @property
     def names(self):

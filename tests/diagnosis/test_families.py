@@ -169,4 +169,4 @@ def test_extra_mode_adds_a_modal_term_in_each_channels_output():
         term = a[c] * levels[c] * (1j * W / wx) ** p[c] * shape
         np.testing.assert_allclose(G[c], H[c] + term, rtol=1e-9, atol=1e-15)
     ext = ExtraMode(7.0, ("c1", "c2", "c3"), (0, 0, 0), levels)
-    assert ext.names == ("f_x70", "zeta_x70", "a_x70_c1", "a_x70_c2", "a_x70_c3")
+    assert ext.names == ("f_x7000", "zeta_x7000", "a_x7000_c1", "a_x7000_c2", "a_x7000_c3")
