@@ -59,6 +59,9 @@ class Case:
     # model discrepancy a diagnosis adds to every fit (nlp.diagnosis.discrepancy): resonances
     # outside the model class, as modal terms; empty for updating
     discrepancy: tuple = ()
+    # the model lacks as many resonances in its band as it has (a class of motion is
+    # missing, not a subsystem): no change of its parameters is named (discrepancy.py)
+    outside_class: bool = False
     # decision vector z at which a diagnosis on the reduced backend computes its basis
     # (nlp.diagnosis.reduction; None: the initial model)
     basis_centre: np.ndarray = None

@@ -37,11 +37,12 @@ from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.candidates import base_candidate
 from nlp.diagnosis.locations import floor_count
 from nlp.diagnosis.refit import refit
-from nlp.diagnosis.resolution import damping_pinned
+from nlp.diagnosis.resolution import damping_pinned, resolved
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
 
-__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "resonant", "kept_modes", "beyond_band", "EDGE_MARGIN", "fit_discrepancy", "explained_by",
+__all__ = ["RESTRICTION_LEVEL", "extra_modes_in_band", "resonant", "kept_modes",
+           "own_modes_in_band", "outside_class", "class_statement", "beyond_band", "EDGE_MARGIN", "fit_discrepancy", "explained_by",
            "described", "subset_z", "LEVEL_HALF_WIDTH"]
 
 # The restriction "a catalogue family instead of a free modal term" is refused when its
@@ -222,19 +223,63 @@ def resonant(pr, z, modes):
     return out
 
 
-def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent=lambda: False):
+def own_modes_in_band(case, pr, z):
+    """Natural frequencies [Hz] of the model pr at z inside the case's selectable band."""
+    ok = selectable(case.config, case.f, case.channels, case.coherence)
+    fsel = case.f[ok]
+    M, K, _ = pr.system_matrices(z)
+    f_r = np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
+                              eigvals_only=True))) / (2 * np.pi)
+    return f_r[(f_r >= fsel.min()) & (f_r <= fsel.max())] if fsel.size else f_r[:0]
+
+
+def outside_class(n_missing, n_own):
+    """Whether the model lacks a class of motion, not a subsystem: as many resonances in its
+    band as it has there. A subsystem (an appendage, a flexible base, the table) adds one
+    resonance; the out-of-plane or torsional motion of an n-storey frame adds n, one per
+    storey, as many as the planar model's own. Catalogue families fitted to such a model take
+    up that motion's coupling to the model's modes, which each missing mode the sensors see
+    has, so no change of the model's parameters is named (docs/method/diagnosis.md)."""
+    return n_own > 0 and n_missing >= n_own
+
+
+def distinct_count(pr, z, modes):
+    """How many separate resonances the fitted terms of modes are: two whose half-power
+    bands overlap (separation under zeta_a f_a + zeta_b f_b, resolution.resolved) are one
+    peak seen twice (one mode read on different channels), not two modes. pr, z: the
+    model with every mode fitted."""
+    theta, names = pr.theta(z), list(pr.params.names)
+    fz = sorted((float(theta[names.index(m.names[0])]), float(theta[names.index(m.names[1])]))
+                for m in modes)
+    count, last = 0, None
+    for f, zeta in fz:
+        if last is None or resolved(f - last[0], zeta * f + last[1] * last[0], 0.0):
+            count += 1
+            last = (f, zeta)
+    return count
+
+
+def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent=lambda: False, n_own=None):
     """The modes kept as model discrepancy: resonant (their damping measured) and explained
     by no catalogue family as well as by a free modal term. wide: the look's points (target,
     held-out points and their noise); pr_d, res_d: the model with every mode fitted.
     spent() true: the time budget is spent, and the modes left are kept untested (no
-    family is claimed for them). Returns (kept, untested)."""
+    family is claimed for them). n_own: the model's own modes in the band; when the
+    resonant modes are as many (:func:`outside_class`), every one is kept and no family is
+    asked. Returns (kept, untested, outside)."""
     keep, untested = [], []
     measured = resonant(pr_d, res_d.z, modes)
     for m in modes:
         if not any(m is x for x in measured):
             log(f"  {m.f0:.2f} Hz: its damping sits at the bound of its box: a line a bin or "
                 "two wide, not a resonance; not model discrepancy")
-            continue
+    n_missing = distinct_count(pr_d, res_d.z, measured) if measured and n_own else 0
+    if n_own is not None and outside_class(n_missing, n_own):
+        log(f"  {n_missing} resonances the model lacks against its own {n_own} in the "
+            "band: a class of motion outside the model (out-of-plane, torsional), not a "
+            "subsystem; all kept as model discrepancy, and no change of the model is named")
+        return list(measured), [], True
+    for m in measured:
         if spent():
             keep.append(m)
             untested.append(m.f0)
@@ -252,22 +297,25 @@ def kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent=lambda: False):
             keep.append(m)
             log(f"  {m.f0:.2f} Hz: no catalogue family explains it as well as a free modal "
                 "term: model discrepancy, kept in every fit")
-    return keep, untested
+    return keep, untested, False
 
 
-def kept_discrepancy(case, wide, z_base, modes, log, spent=lambda: False):
+def kept_discrepancy(case, wide, z_base, modes, log, spent=lambda: False, n_own=None):
     """(indices of the modes kept as model discrepancy, the optimum of the model with
     them or None, the frequencies kept untested because spent() said the time budget was
-    spent) on the look's points with windows at the modes (wide), from the baseline's
-    optimum z_base."""
+    spent, whether the model lacks a class of motion (:func:`outside_class`)) on the look's
+    points with windows at the modes (wide), from the baseline's optimum z_base. n_own: the
+    model's own modes in the band."""
     b0 = best_fit(wide.base, [z_base])
     pr_d, res_d = fit_discrepancy(case, wide.base, b0.z, modes, wide.fit)
     n_fit = wide.base.n_used
     log(f"  with a free modal term at each: chi-square {2 * res_d.f:.1f} against "
         f"{2 * b0.f:.1f} without, on {n_fit} fitted points")
-    keep, untested = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent)
+    keep, untested, outside = kept_modes(case, wide, pr_d, res_d, modes, n_fit, log, spent,
+                                         n_own)
     kept = [i for i, m in enumerate(modes) if any(m is k for k in keep)]
-    return kept, (subset_z(pr_d, res_d.z, modes, keep) if keep else None), untested
+    return (kept, (subset_z(pr_d, res_d.z, modes, keep) if keep else None), untested,
+            outside)
 
 
 def subset_z(pr, z, modes, keep):
@@ -330,6 +378,20 @@ def described(pr, z, modes):
                                   "or local mode, or a subsystem outside the model): kept in every "
                                   "fit as model discrepancy, not named as a finding.")})
     return out
+
+
+def class_statement(case, disc):
+    """The statement of a model that lacks a class of motion (:func:`outside_class`), or []
+    (disc: the described model discrepancy)."""
+    if not case.outside_class:
+        return []
+    freqs = ", ".join(f"{d['frequency_hz']:.2f}" for d in disc if d.get("fitted", True))
+    return [f"The model lacks as many resonances in its band as it has ({freqs} Hz): a class "
+            "of motion outside the model (torsional or out-of-plane modes of the frame, one per "
+            "storey), not a subsystem. No change of the model's parameters is named, because "
+            "catalogue families fitted to it would take up that motion's coupling to the "
+            "model's own modes. Measure it (two accelerometers per floor, or one in the other "
+            "direction) and update a model that has it."]
 
 
 def refute_in_discrepancy(discrepancy, results, log):

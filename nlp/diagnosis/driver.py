@@ -40,7 +40,7 @@ from nlp.diagnosis.checkpoint import (budget_note, budget_over, budget_spent, fi
 from nlp.diagnosis.checks import loss_check, phase_check, unexplained, whole_band
 from nlp.diagnosis.decide import adequate, better_unresolved, decide
 from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
-                                       refute_in_discrepancy)
+                                       own_modes_in_band, refute_in_discrepancy)
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
@@ -126,7 +126,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     else:
         case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, None, opts, log)
-    if widen == 1 and not level_bound:
+    if widen == 1 and not level_bound and not case.outside_class:
         wide = widen_stage(cfg, case, points, base, sel, nonlin, opts, log)
         if wide is not None:
             return wide
@@ -139,7 +139,8 @@ def widened_look(cfg, opts, nonlin, hot, seed, log, first):
     findings (a look after findings), or None (a look after none); first: the first look's
     case, whose model discrepancy is kept (its windows too) and reduced basis reused."""
     discrepancy = first.discrepancy
-    case = replace(assemble(cfg), discrepancy=tuple(discrepancy), basis_centre=first.basis_centre)
+    case = replace(assemble(cfg), discrepancy=tuple(discrepancy), basis_centre=first.basis_centre,
+                   outside_class=first.outside_class)
     hot = tuple(dict.fromkeys(tuple(hot) + tuple(m.f0 for m in discrepancy)))
     points = points_stage(cfg, case, WIDEN, hot, log)
     base = baseline_stage(cfg, case, points, seed, log)
@@ -295,15 +296,16 @@ def discrepancy_stage(cfg, case, points, base, widen, log):
         + ": is each one a catalogue family's, or model discrepancy?")
     wide = points_stage(cfg, case, widen, hot, log)
     # kept as a step: on a torsional frame this stage alone has taken a quarter of an hour
-    kept, z0, untested = logged_step(
-        "discrepancy", fingerprint(wide.fit, base.res.z, hot),
-        lambda lg: kept_discrepancy(case, wide, base.res.z, modes, lg, budget_over), log)
+    n_own = own_modes_in_band(case, points.base, base.res.z).size
+    kept, z0, untested, outside = logged_step(
+        "discrepancy", fingerprint(wide.fit, base.res.z, hot, n_own),
+        lambda lg: kept_discrepancy(case, wide, base.res.z, modes, lg, budget_over, n_own), log)
     if untested:
         budget_note("the families' test of the resonances at " + ", ".join(
             f"{f:.2f}" for f in untested) + " Hz (kept as model discrepancy)")
     if not kept:
         return case, points, base
-    case = replace(case, discrepancy=tuple(modes[i] for i in kept))
+    case = replace(case, discrepancy=tuple(modes[i] for i in kept), outside_class=outside)
     points = points_stage(cfg, case, widen, hot, log)
     return case, points, baseline_stage(cfg, case, points, None, log, starts=[z0])
 
@@ -327,7 +329,7 @@ def selection_stage(cfg, case, points, base, level_bound, seed, opts, log):
     advance("diagnose", "selection")
     sel = Selection(state={"current": [], "z": base.res.z, "chi": base.chi,
                            "held": base.held, "problem": points.base})
-    if level_bound:
+    if level_bound or case.outside_class:
         return sel, base
     others = setup_others(cfg, case.discrepancy, log)
     sel.reciprocity = reciprocity_of_tests(cfg, case.f[points.fit]) if cfg.data.tests else \
@@ -469,7 +471,9 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
     advance("diagnose", "checks")
     state = sel.state
     phase = loss = None
-    if level_bound:   # a linear fit that far off says nothing about priors, dampers, phase
+    # a linear fit that far off, or a model without a class of motion the data show, says
+    # nothing about priors, dampers, phase
+    if level_bound or case.outside_class:
         inside = {"findings": [], "parameter_changes": [], "damping": None, "absorbed": [],
                   "parameters": []}
     else:

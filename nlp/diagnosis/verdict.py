@@ -9,7 +9,7 @@ import textwrap
 
 from nlp.diagnosis.checkpoint import budget_report
 from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
-from nlp.diagnosis.discrepancy import beyond_band, described
+from nlp.diagnosis.discrepancy import beyond_band, class_statement, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
 from nlp.diagnosis.joint import between_tests
@@ -393,7 +393,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     statements[:0] = _level_statements(base, named, level_bound) if named else []
     suggestions = _suggestions(cfg, case, verdict, sel, unconfirmed, remaining, nonlin_found,
                                extra + beyond)
-    statements += [d["statement"] for d in disc]
+    statements += [d["statement"] for d in disc] + class_statement(case, disc)
     statements += _joint_statements(nonlin, nonlin_found)
     statements += _tie_statements(sel)
     statements += _unconfirmed_statements(cfg, unconfirmed, verdict)
@@ -418,7 +418,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "fitted_parameters": inside["parameters"],
               "damping_decomposition": inside["damping"],
               "summary": statements, "remaining_mismatch": remaining,
-              "model_discrepancy": disc,
+              "model_discrepancy": disc, "outside_model_class": case.outside_class,
               "mismatch_left": mismatch_left(checks.whole) if remaining else None,
               "evidence_scale": {"phi": sel.phis[0] if sel.phis else 1.0},
               "fit": {"before": fit_before, "after": fit_after},
