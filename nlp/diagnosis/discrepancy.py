@@ -150,6 +150,13 @@ def peak_channels(case, f0):
     return out
 
 
+def natural_frequencies(pr, z):
+    """Undamped natural frequencies [Hz] of the model pr at z."""
+    M, K, _ = pr.system_matrices(z)
+    return np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
+                               eigvals_only=True))) / (2 * np.pi)
+
+
 def shifted(case, pr, z, f0, peaks):
     """Whether a resonance at f0 [Hz] the model lacks is one of the model's own modes moved:
     a mode of the updated model within MATCH_RATIO of f0 shows no measured peak within
@@ -157,9 +164,7 @@ def shifted(case, pr, z, f0, peaks):
     show a peak the model lacks and lack the model's, one mode, not an extra one. An
     appendage tuned near a mode splits it the same way; it is left to the candidates.
     peaks: the measured resonances [Hz] (:func:`measured_peaks`)."""
-    M, K, _ = pr.system_matrices(z)
-    f_r = np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
-                              eigvals_only=True))) / (2 * np.pi)
+    f_r = natural_frequencies(pr, z)
     near = f_r[np.abs(np.log(f_r / f0)) < np.log(MATCH_RATIO)]
     return any(peaks.size == 0 or np.min(np.abs(peaks - fr)) > NEAR_MODEL * fr for fr in near)
 
@@ -227,9 +232,7 @@ def own_modes_in_band(case, pr, z):
     """Natural frequencies [Hz] of the model pr at z inside the case's selectable band."""
     ok = selectable(case.config, case.f, case.channels, case.coherence)
     fsel = case.f[ok]
-    M, K, _ = pr.system_matrices(z)
-    f_r = np.sqrt(np.abs(eigh(np.asarray(K, float), np.asarray(M, float),
-                              eigvals_only=True))) / (2 * np.pi)
+    f_r = natural_frequencies(pr, z)
     return f_r[(f_r >= fsel.min()) & (f_r <= fsel.max())] if fsel.size else f_r[:0]
 
 
