@@ -110,8 +110,13 @@ def run(folder, timeout, budget=None):
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
         code = p.returncode
         err = p.stderr.strip().splitlines()[-1:] if code else []
-    except subprocess.TimeoutExpired:
+        text = p.stdout + p.stderr
+    except subprocess.TimeoutExpired as e:
         code, err = "timeout", [f"no result within {timeout} s"]
+        text = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
+    # the diagnosis's own log, beside its result, for reading a development case afterwards
+    with open(os.path.join(folder, "diagnosis.log"), "w") as fh:
+        fh.write(text)
     res = None
     path = os.path.join(out, "diagnosis.json")
     if code == 0 and os.path.isfile(path):
