@@ -9,14 +9,15 @@
 import numpy as np
 
 from nlp.case.selection import detection_form
-from nlp.diagnosis.band import (MAX_SCATTER, NEAR_MODEL, band_map, band_mask, extra_modes,
-                                hot_spots, local_sigma)
+from nlp.diagnosis.band import (MAX_SCATTER, band_map, band_mask, extra_modes, hot_spots,
+                                local_sigma, near)
 from nlp.diagnosis.families import HystereticDamping, SensorDelay
 from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, noise_sigma,
                                    quasi_se, with_values)
 from nlp.diagnosis.loss import band_points, loss_decision, loss_row
 from nlp.diagnosis.phase import delay_check
 from nlp.diagnosis.refit import REFIT_ITER
+from nlp.diagnosis.resolution import estimate_resolution
 from nlp.diagnosis.locations import story_count
 from nlp.frf.scatter import second_difference_factor
 
@@ -173,10 +174,11 @@ def whole_band(case, base, zb, improved, zi, fit):
         for c in cells:
             c["channel"] = case.channels[c["channel"]].name
         maps[key] = cells
-    extra = extra_modes(f, Lx, La, sig, m, d2_factor=d2f)
+    res_hz = estimate_resolution(case.f, case.config.data.window)
+    extra = extra_modes(f, Lx, La, sig, m, d2_factor=d2f, resolution=res_hz)
     # a resonance kept as model discrepancy is in the model, though its real residue may
     # leave a channel's peak standing: it is reported there, not again as an extra mode
-    extra = [e for e in extra if not any(abs(e["frequency_hz"] / d.f0 - 1.0) <= NEAR_MODEL
+    extra = [e for e in extra if not any(near(e["frequency_hz"], d.f0, res_hz)
                                          for d in case.discrepancy)]
     for e in extra:
         e["channels"] = [case.channels[c].name for c in e["channels"]]

@@ -28,7 +28,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.case.selection import detection_form, selectable
-from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL, PEAK_Z, local_sigma
+from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL, PEAK_Z, local_sigma, near
 from nlp.diagnosis.checks import whole_band
 from nlp.diagnosis.decide import where
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
@@ -37,7 +37,7 @@ from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.candidates import base_candidate
 from nlp.diagnosis.locations import floor_count
 from nlp.diagnosis.refit import refit
-from nlp.diagnosis.resolution import damping_pinned, resolved
+from nlp.diagnosis.resolution import damping_pinned, estimate_resolution, resolved
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
 
@@ -67,12 +67,13 @@ def extra_modes_in_band(case, points, base):
     if fsel.size == 0:
         return []
     out, peaks = [], measured_peaks(case)
+    res_hz = estimate_resolution(case.f, case.config.data.window)
     for e in whole["extra_modes"]:
         f0 = float(e["frequency_hz"])
         # a resonance is a peak of the measurement; a step or dip against the model (a
         # moved anti-resonance) is not one
         if (_fittable(f0, fsel)
-                and peaks.size and np.min(np.abs(peaks - f0)) <= NEAR_MODEL * f0
+                and peaks.size and np.any(near(peaks, f0, res_hz))
                 and not shifted(case, points.base, base.res.z, f0, peaks)):
             out.append(extra_mode(case, f0))
     return out
@@ -144,8 +145,8 @@ def peak_channels(case, f0):
     out = []
     for c in range(D.shape[0]):
         pk, props = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
-        near = np.abs(case.f[pk] / f0 - 1.0) <= NEAR_MODEL
-        if np.any(props["prominences"][near] >= max(MIN_EXCESS, PEAK_Z * sig[c])):
+        close = np.abs(case.f[pk] / f0 - 1.0) <= NEAR_MODEL
+        if np.any(props["prominences"][close] >= max(MIN_EXCESS, PEAK_Z * sig[c])):
             out.append(case.channels[c].name)
     return out
 
@@ -159,14 +160,24 @@ def natural_frequencies(pr, z):
 
 def shifted(case, pr, z, f0, peaks):
     """Whether a resonance at f0 [Hz] the model lacks is one of the model's own modes moved:
-    a mode of the updated model within MATCH_RATIO of f0 shows no measured peak within
-    NEAR_MODEL of it. A missing coupling or a mistuned storey moves a mode; the data then
-    show a peak the model lacks and lack the model's, one mode, not an extra one. An
+    a mode of the updated model within MATCH_RATIO of f0 shows no measured peak, other than
+    f0's own, within NEAR_MODEL or the estimate's resolution of it (band.near). A missing
+    coupling or a mistuned storey moves a mode; the data then show a peak the model lacks
+    and lack the model's, one mode, not an extra one. An
     appendage tuned near a mode splits it the same way; it is left to the candidates.
     peaks: the measured resonances [Hz] (:func:`measured_peaks`)."""
-    f_r = natural_frequencies(pr, z)
-    near = f_r[np.abs(np.log(f_r / f0)) < np.log(MATCH_RATIO)]
-    return any(peaks.size == 0 or np.min(np.abs(peaks - fr)) > NEAR_MODEL * fr for fr in near)
+    return moved(natural_frequencies(pr, z), f0, peaks,
+                 estimate_resolution(case.f, case.config.data.window))
+
+
+def moved(f_r, f0, peaks, resolution):
+    """Whether one of the model's natural frequencies f_r [Hz] within MATCH_RATIO of f0
+    has no measured peak (peaks [Hz]) near it (band.near) other than f0's own: peaks within
+    the resolution [Hz] of f0 are f0's, read a bin apart on other channels."""
+    f_r, peaks = np.asarray(f_r, float), np.asarray(peaks, float)
+    close = f_r[np.abs(np.log(f_r / f0)) < np.log(MATCH_RATIO)]
+    others = peaks[~near(peaks, f0, resolution)]
+    return any(others.size == 0 or not np.any(near(others, fr, resolution)) for fr in close)
 
 
 def extra_mode(case, f0):
