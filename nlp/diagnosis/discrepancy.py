@@ -28,7 +28,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from nlp.diagnosis.widen import HOT_WINDOW
 from nlp.case.selection import detection_form, selectable
-from nlp.diagnosis.band import MIN_EXCESS, NEAR_MODEL, PEAK_Z, local_sigma, near
+from nlp.diagnosis.band import MIN_EXCESS, PEAK_Z, local_sigma, near
 from nlp.diagnosis.checks import whole_band
 from nlp.diagnosis.decide import where
 from nlp.diagnosis.evidence import SIGNIFICANCE, dispersion
@@ -136,16 +136,17 @@ def measured_peaks(case):
 
 
 def peak_channels(case, f0):
-    """Names of the channels whose accelerance peaks within NEAR_MODEL of f0 [Hz], rising
+    """Names of the channels whose accelerance peaks near f0 [Hz] (band.near), rising
     above its surroundings by max(ln 1.2, PEAK_Z x the channel's median local noise). The
     median over the band, not the local value: a strong, sharp peak inflates the local
     scatter around itself on the channels that see it best."""
     D = _ln_accelerance(case)
     sig = np.median(local_sigma(D), axis=1)
+    res_hz = estimate_resolution(case.f, case.config.data.window)
     out = []
     for c in range(D.shape[0]):
         pk, props = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
-        close = np.abs(case.f[pk] / f0 - 1.0) <= NEAR_MODEL
+        close = near(case.f[pk], f0, res_hz)
         if np.any(props["prominences"][close] >= max(MIN_EXCESS, PEAK_Z * sig[c])):
             out.append(case.channels[c].name)
     return out
