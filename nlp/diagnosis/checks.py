@@ -17,7 +17,7 @@ from nlp.diagnosis.fitting import (diagnosis_problem, fit_target, fit_windows, n
 from nlp.diagnosis.loss import band_points, loss_decision, loss_row
 from nlp.diagnosis.phase import delay_check
 from nlp.diagnosis.refit import REFIT_ITER
-from nlp.diagnosis.resolution import estimate_resolution
+from nlp.diagnosis.resolution import case_resolution
 from nlp.diagnosis.locations import story_count
 from nlp.frf.scatter import second_difference_factor
 
@@ -174,7 +174,7 @@ def whole_band(case, base, zb, improved, zi, fit):
         for c in cells:
             c["channel"] = case.channels[c["channel"]].name
         maps[key] = cells
-    res_hz = estimate_resolution(case.f, case.config.data.window)
+    res_hz = case_resolution(case)
     extra = extra_modes(f, Lx, La, sig, m, d2_factor=d2f, resolution=res_hz)
     # a resonance kept as model discrepancy is in the model, though its real residue may
     # leave a channel's peak standing: it is reported there, not again as an extra mode

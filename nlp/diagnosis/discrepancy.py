@@ -37,7 +37,7 @@ from nlp.diagnosis.fitting import best_fit, diagnosis_problem, quasi_se
 from nlp.diagnosis.candidates import base_candidate
 from nlp.diagnosis.locations import floor_count
 from nlp.diagnosis.refit import refit
-from nlp.diagnosis.resolution import damping_pinned, estimate_resolution, resolved
+from nlp.diagnosis.resolution import case_resolution, damping_pinned, resolved
 from nlp.frf.forms import POWER
 from nlp.frf.freqsel import MATCH_RATIO
 
@@ -67,7 +67,7 @@ def extra_modes_in_band(case, points, base):
     if fsel.size == 0:
         return []
     out, peaks = [], measured_peaks(case)
-    res_hz = estimate_resolution(case.f, case.config.data.window)
+    res_hz = case_resolution(case)
     for e in whole["extra_modes"]:
         f0 = float(e["frequency_hz"])
         # a resonance is a peak of the measurement; a step or dip against the model (a
@@ -142,7 +142,7 @@ def peak_channels(case, f0):
     scatter around itself on the channels that see it best."""
     D = _ln_accelerance(case)
     sig = np.median(local_sigma(D), axis=1)
-    res_hz = estimate_resolution(case.f, case.config.data.window)
+    res_hz = case_resolution(case)
     out = []
     for c in range(D.shape[0]):
         pk, props = find_peaks(D[c], prominence=MIN_EXCESS, wlen=41)
@@ -167,8 +167,7 @@ def shifted(case, pr, z, f0, peaks):
     and lack the model's, one mode, not an extra one. An
     appendage tuned near a mode splits it the same way; it is left to the candidates.
     peaks: the measured resonances [Hz] (:func:`measured_peaks`)."""
-    return moved(natural_frequencies(pr, z), f0, peaks,
-                 estimate_resolution(case.f, case.config.data.window))
+    return moved(natural_frequencies(pr, z), f0, peaks, case_resolution(case))
 
 
 def moved(f_r, f0, peaks, resolution):

@@ -16,7 +16,7 @@ from nlp.diagnosis.evidence import BIC_ACCEPT, dispersion
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, case_references, normalised,
                                    projected_columns, quasi_se, with_values)
 from nlp.diagnosis.locations import located
-from nlp.diagnosis.resolution import appendage_split, estimate_resolution, resolved
+from nlp.diagnosis.resolution import appendage_split, case_resolution, resolved
 from nlp.diagnosis.spread import correlation_factor
 from nlp.output.progress import stage
 from nlp.solve.executors import Setup, make_executor
@@ -111,7 +111,7 @@ def appendage_resolution(case, pr, z):
     """How far the fitted appendage's mode stands from the nearest structural mode, against
     what the data can resolve (nlp/diagnosis/resolution.py)."""
     sep, half, fa, fb = appendage_split(*pr.system_matrices(z))
-    res_hz = estimate_resolution(case.f, case.config.data.window)
+    res_hz = case_resolution(case)
     return {"separation_hz": sep, "half_widths_hz": half, "resolution_hz": res_hz,
             "appendage_mode_hz": fa, "nearest_mode_hz": fb, "resolved": resolved(sep, half, res_hz)}
 

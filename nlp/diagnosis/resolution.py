@@ -23,7 +23,7 @@ from scipy import signal
 
 from nlp.frf.reference import modal_parameters
 
-__all__ = ["estimate_resolution", "appendage_split", "resolved", "damping_pinned"]
+__all__ = ["estimate_resolution", "case_resolution", "appendage_split", "resolved", "damping_pinned"]
 
 
 def estimate_resolution(f, window):
@@ -39,6 +39,11 @@ def estimate_resolution(f, window):
         return df
     w = signal.get_window(window, 1024)
     return df * 1024 * float(w @ w) / float(w.sum()) ** 2
+
+
+def case_resolution(case):
+    """Resolution [Hz] of the case's FRF estimate (estimate_resolution of its grid and window)."""
+    return estimate_resolution(case.f, case.config.data.window)
 
 
 def appendage_split(M, K, C, dof=-1):
