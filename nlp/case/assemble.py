@@ -62,6 +62,9 @@ class Case:
     # the model lacks as many resonances in its band as it has (a class of motion is
     # missing, not a subsystem): no change of its parameters is named (discrepancy.py)
     outside_class: bool = False
+    # sensors whose gain a diagnosis named as beyond the case's calibration tolerance: freed
+    # in every later fit (nlp.diagnosis.calibration)
+    released_gains: tuple = ()
     # decision vector z at which a diagnosis on the reduced backend computes its basis
     # (nlp.diagnosis.reduction; None: the initial model)
     basis_centre: np.ndarray = None

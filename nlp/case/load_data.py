@@ -20,7 +20,8 @@ def data_section(rd, d, base):
     rd.check_keys(d, "data", {"type", "file", "format", "unit_factor", "channels", "input",
                               "estimator", "nperseg", "overlap", "window", "validation_file",
                               "validation_force_floor", "level_files", "tests", "db_reference", "records",
-                              "columns", "skip_rows", "time_column", "fs", "screen"})
+                              "columns", "skip_rows", "time_column", "fs", "screen",
+                              "calibration"})
     kind = rd.choice(d, "type", "data.type", DATA_TYPES, DataConfig.type)
     records = kind == "time_histories"
     f, rec_paths, val = _data_files(rd, d, base, records)
@@ -45,12 +46,16 @@ def data_section(rd, d, base):
         raise rd.err("data.db_reference", "only with format db or db_magnitude", fmt)
     layout = _text_layout(rd, d, records)
     _check_window(rd, d, records)
+    cal = rd.number(d, "calibration", "data.calibration", None, positive=True)
+    if cal is not None and cal >= 0.5:
+        raise rd.err("data.calibration", "the relative tolerance of the transducers' "
+                     "sensitivity, a number > 0 and < 0.5 (0.03 for +-3 %)", cal)
     return DataConfig(file=f, format=fmt, unit_factor=unit, channels=channels, type=kind,
                       input=inp, estimator=est, nperseg=nperseg, overlap=overlap,
                       window=str(d.get("window", "boxcar" if nperseg == "all" else DataConfig.window)),
                       validation_file=val,
                       validation_force_floor=vfloor, level_files=tuple(level_paths), tests=tests,
-                      db_reference=dbref, records=tuple(rec_paths), **layout)
+                      db_reference=dbref, records=tuple(rec_paths), calibration=cal, **layout)
 
 
 def _data_files(rd, d, base, records):

@@ -150,6 +150,7 @@ class DataConfig:
     time_column: str = None                # time column [s] (default t or time)
     fs: float = None                       # sampling rate [Hz] when there is no time column
     screen: ScreenConfig = field(default_factory=ScreenConfig)  # spikes and dropouts
+    calibration: float = None              # every transducer's sensitivity known within +- this fraction (its certificate): diagnose fits each channel's gain inside it and names only a gain beyond it
 
     @property
     def has_phase(self):

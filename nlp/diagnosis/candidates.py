@@ -42,7 +42,8 @@ def candidates(case):
         out.append(FrameAction())
     # one per sensor: tests fitted jointly share their sensors (nlp.case.joint)
     sensors = list(dict.fromkeys(ch.sensor_name for ch in case.channels))
-    out += [SensorGain(s) for s in sensors]
+    if not case.config.data.calibration:   # else gains beyond the tolerance: .calibration
+        out += [SensorGain(s) for s in sensors]
     if case.config.objective.residual == "complex":
         out += [SensorDelay(s) for s in sensors]
     return out

@@ -26,7 +26,6 @@ stages' data (:mod:`nlp.diagnosis.look`):
 
 from dataclasses import replace
 import math
-import os
 
 import numpy as np
 
@@ -44,6 +43,7 @@ from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
+from nlp.diagnosis.gains import confirmed_gains, released_gains
 from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
@@ -53,14 +53,13 @@ from nlp.diagnosis.others import final_records, hold_on_others, refits_of_others
 from nlp.diagnosis.reciprocity import reciprocal_pairs, refute_gains
 from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
-from nlp.diagnosis.screen import screen_tests, setup_error_result
+from nlp.diagnosis.screen import screen_stage
 from nlp.diagnosis.spread import chi2_spread
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
 from nlp.diagnosis.widen import (WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak,
                                  refuted_on_wider)
 from nlp.frf.noise import describe as describe_noise
 from nlp.output.progress import advance, steps
-from nlp.output.results import write_json
 from nlp.solve.executors import Setup
 from nlp.solve.search import SearchConfig
 
@@ -113,6 +112,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     base = baseline_stage(cfg, case, points, None, log)
     if uses_reduced(case):
         case, points, base = reduced_stage(cfg, case, points, base, log)
+    case, points, base = calibration_stage(cfg, case, points, base, log)
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
                          lambda lg: nonlinearity(cfg, lg), log)
@@ -126,6 +126,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     else:
         case, points, base = discrepancy_stage(cfg, case, points, base, widen, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, None, opts, log)
+    case, sel.state = confirmed_gains(case, points, sel.state, base.nu, base.n_fit, log)
     if widen == 1 and not level_bound and not case.outside_class:
         wide = widen_stage(cfg, case, points, base, sel, nonlin, opts, log)
         if wide is not None:
@@ -140,12 +141,13 @@ def widened_look(cfg, opts, nonlin, hot, seed, log, first):
     case, whose model discrepancy is kept (its windows too) and reduced basis reused."""
     discrepancy = first.discrepancy
     case = replace(assemble(cfg), discrepancy=tuple(discrepancy), basis_centre=first.basis_centre,
-                   outside_class=first.outside_class)
+                   outside_class=first.outside_class, released_gains=first.released_gains)
     hot = tuple(dict.fromkeys(tuple(hot) + tuple(m.f0 for m in discrepancy)))
     points = points_stage(cfg, case, WIDEN, hot, log)
     base = baseline_stage(cfg, case, points, seed, log)
     level_bound = level_stage(base, nonlin, log)
     sel, base = selection_stage(cfg, case, points, base, level_bound, seed, opts, log)
+    case, sel.state = confirmed_gains(case, points, sel.state, base.nu, base.n_fit, log)
     gone = refuted_on_wider(sel, base.held) if seed is not None else None
     sel.unconfirmed += [gone] if gone else []
     return conclude(cfg, case, points, base, sel, nonlin, level_bound, None, log)
@@ -190,25 +192,6 @@ def conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log):
 
 
 # ------------------------------------------------------------------ stages
-def screen_stage(cfg, case, out, log):
-    """Screen the data before fitting (nlp.diagnosis.screen). A case that contradicts its
-    data gets the verdict setup_error, written to out/diagnosis.json; otherwise
-    {"verdict": None, "report": the screening} for the diagnosis to carry."""
-    advance("diagnose", "screen")
-    report = screen_tests(case)
-    for w in report["warnings"]:
-        log(f"screening: {w['message']}")
-    if not report["setup_errors"]:
-        return {"verdict": None, "report": report}
-    result = dict(case=cfg.name, case_file=cfg.path, **setup_error_result(report))
-    os.makedirs(out, exist_ok=True)
-    write_json(os.path.join(out, "diagnosis.json"), result)
-    log("verdict: setup_error (the data contradict the case; no physics is blamed)")
-    for e in report["setup_errors"]:
-        log(f"  set-up error: {e['message']}")
-    return result
-
-
 def points_stage(cfg, case, widen, hot, log):
     """The fitted windows (widen x the case's half-power bandwidths, plus windows at the
     hot frequencies), the held-out shoulders (3x wider, not fitted), and the target."""
@@ -279,6 +262,21 @@ def reduced_stage(cfg, case, points, base, log):
     centre, z = step("reduced basis", fingerprint(points.fit, base.res.z),
                      lambda: recentre_baseline(case, refit, base.res.z, log)[1:3])
     case = replace(case, basis_centre=centre)  # the last problem's basis is cached: no rebuild
+    points = replace(points, base=diagnosis_problem(case, points.target))
+    return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])
+
+
+def calibration_stage(cfg, case, points, base, log):
+    """(case, points, baseline) with the gains the data put beyond the case's calibration
+    tolerance freed (nlp.diagnosis.gains); unchanged when the case states none."""
+    if not cfg.data.calibration:
+        return case, points, base
+    found, z = logged_step("calibration", fingerprint(points.fit, base.res.z), lambda lg:
+                           released_gains(case, points, base.res.z, base.chi, base.held,
+                                          base.nu, base.n_fit, lg), log)
+    if not found:
+        return case, points, base
+    case = replace(case, released_gains=tuple(found))
     points = replace(points, base=diagnosis_problem(case, points.target))
     return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])
 
@@ -484,6 +482,7 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         loss = loss_check(case, state, phase["findings"] if phase else [], log)
         if loss:
             inside["findings"] += loss["findings"]
+    inside["findings"] = list(case.released_gains) + inside["findings"]
     consistency, unconfirmed = final_records(sel)
     whole = whole_band(case, points.base, base.res.z, state["problem"], state["z"], points.fit)
     alone = []

@@ -12,6 +12,7 @@ import numpy as np
 
 from nlp.case.selection import half_power_points
 from nlp.frf.noise import sigma_ln
+from nlp.diagnosis.calibration import calibration_of
 from nlp.diagnosis.families import extend_parameters, references
 from nlp.diagnosis.locations import fe_references, is_fe
 from nlp.diagnosis.reduction import basis_of, uses_reduced
@@ -51,12 +52,15 @@ def diagnosis_problem(case, target, enrichments=(), values=None, compile=True, o
     """
     cfg = case.config
     refs = case_references(case)
-    if case.discrepancy:
-        # the model error stays in every fit, so candidates are judged with it present
-        # (nlp.diagnosis.discrepancy); its parameters come first among the added ones
+    # the calibration within its tolerance and the model error stay in every fit, so
+    # candidates are judged with them present (nlp.diagnosis.calibration, .discrepancy);
+    # their parameters come first among the added ones, the calibration's before
+    cal = calibration_of(case)
+    kept = ((cal,) if cal is not None else ()) + tuple(case.discrepancy)
+    if kept:
         if values is not None:
-            values = [e.spec(refs)["initial"] for e in case.discrepancy] + list(values)
-        enrichments = tuple(case.discrepancy) + tuple(enrichments)
+            values = [e.spec(refs)["initial"] for e in kept] + list(values)
+        enrichments = kept + tuple(enrichments)
     damping, base_params = damping if damping is not None else (case.damping, case.params)
     params = extend_parameters(base_params, enrichments, refs, values)
     options = dict(cfg.solver.options)

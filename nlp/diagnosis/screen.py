@@ -40,14 +40,18 @@ return extra warnings or set-up errors in the same form; the spikes and dropouts
 that nlp/quality.py found when the records were read are reported as warnings.
 """
 
+import os
+
 import numpy as np
 from scipy import signal
 
 from nlp.case.assemble import assemble, single_tests
 from nlp.case.selection import detection_form
 from nlp.model.damping import band_modes
+from nlp.output.progress import advance
+from nlp.output.results import write_json
 
-__all__ = ["screen", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swap_test"]
+__all__ = ["screen", "screen_stage", "RECORD_CHECKS", "first_mode_signs", "driving_points", "swap_test"]
 
 RECORD_CHECKS = []          # callables case -> list of {"kind", "message", "severity"}
 
@@ -425,3 +429,22 @@ def setup_error_result(report):
                         "Correct the case (or the data) and run again."] + msgs,
             "remaining_mismatch": False, "fit": {}, "residual_map": {},
             "suggested_measurements": [], "screening": report}
+
+
+def screen_stage(cfg, case, out, log):
+    """Screen the data before fitting (nlp.diagnosis.screen). A case that contradicts its
+    data gets the verdict setup_error, written to out/diagnosis.json; otherwise
+    {"verdict": None, "report": the screening} for the diagnosis to carry."""
+    advance("diagnose", "screen")
+    report = screen_tests(case)
+    for w in report["warnings"]:
+        log(f"screening: {w['message']}")
+    if not report["setup_errors"]:
+        return {"verdict": None, "report": report}
+    result = dict(case=cfg.name, case_file=cfg.path, **setup_error_result(report))
+    os.makedirs(out, exist_ok=True)
+    write_json(os.path.join(out, "diagnosis.json"), result)
+    log("verdict: setup_error (the data contradict the case; no physics is blamed)")
+    for e in report["setup_errors"]:
+        log(f"  set-up error: {e['message']}")
+    return result

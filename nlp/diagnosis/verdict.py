@@ -9,6 +9,7 @@ import textwrap
 
 from nlp.diagnosis.checkpoint import budget_report
 from nlp.diagnosis.decide import ADEQUATE_HELD, adequate, where
+from nlp.diagnosis.gains import calibration_summary
 from nlp.diagnosis.discrepancy import beyond_band, class_statement, described
 from nlp.diagnosis.evidence import BIC_TIE, undetermined
 from nlp.diagnosis.fitting import case_references, residual_map
@@ -426,6 +427,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "whole_band": whole,
               "extra_modes": extra,
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
+              "calibration": calibration_summary(case, sel.state["problem"], sel.state["z"]),
               "provenance": provenance(cfg)}
     _optional_parts(result, screening, checks, nonlin, nonlin_found)
     if budget:

@@ -1,4 +1,5 @@
-"""Output-side families (sensor gain and delay, an extra modal term) on the numeric backends.
+"""Output-side families (sensor gain and delay, every channel's
+calibration, an extra modal term) on the numeric backends.
 
 Each channel's FRF passes through its families in the order given (:mod:`nlp.diagnosis.families`:
 a gain or a delay multiplies it, a modal term adds to it), so the channel's output is
@@ -16,7 +17,7 @@ import numpy as np
 
 __all__ = ["OUTPUT", "Outputs"]
 
-OUTPUT = ("sensor_gain", "sensor_delay", "model_discrepancy")
+OUTPUT = ("sensor_gain", "sensor_delay", "model_discrepancy", "calibration")
 
 
 def _on_channel(e, channel):

@@ -11,7 +11,7 @@ from nlp.testing.blind.cases import describe_test, real_system
 from nlp.testing.blind.experiment import SIM_FACTOR, drive, write_csv
 from nlp.testing.blind.recipe import case_yaml
 from nlp.testing.blind.structures import FAMILIES, SIZES, real_structure
-from nlp.testing.lab.chain import draw_chain, draw_orders
+from nlp.testing.lab.chain import CALIBRATION, draw_chain, draw_orders
 from nlp.testing.lab.experiment import simulate, record
 from nlp.testing.lab.links import (OUTSIDE, OUTSIDE_SIZES, crack, family_nonlinearity, friction,
                                    joints, sliding_mass)
@@ -207,8 +207,11 @@ def make_case(folder, spec, seed, base_channel=True, residual="log_magnitude", p
     os.makedirs(folder, exist_ok=True)
     files = write_records(folder, sysm, lab, test, t, u, levels, seed)
     desc = describe(spec, test, st, lab, files, base_channel, residual, prior)
+    y = case_yaml(os.path.basename(folder), desc)
+    # what the lab's calibration certificates state of every transducer (not the draws)
+    y["data"] = {"calibration": CALIBRATION[1], **y["data"]}
     with open(os.path.join(folder, "case.yaml"), "w") as fh:
-        yaml.safe_dump(case_yaml(os.path.basename(folder), desc), fh, sort_keys=False)
+        yaml.safe_dump(y, fh, sort_keys=False)
     with open(os.path.join(folder, "truth.json"), "w") as fh:
         json.dump(truth_of(spec, st, test, lab, sysm, effects, where, seed), fh, indent=2,
                   default=lambda x: np.asarray(x).tolist())
