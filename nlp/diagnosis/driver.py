@@ -278,7 +278,8 @@ def calibration_stage(cfg, case, points, base, log):
         return case, points, base
     case = replace(case, released_gains=tuple(found))
     points = replace(points, base=diagnosis_problem(case, points.target))
-    return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])
+    return case, points, replace(baseline_stage(cfg, case, points, None, log, starts=[z]),
+                                 before=base)
 
 
 def discrepancy_stage(cfg, case, points, base, widen, log):
@@ -382,7 +383,7 @@ def _repolished_baseline(case, points, base, better):
     cells, _, _ = residual_map(case, points.base, res.z, points.fit, points.held,
                                points.sig_fit, points.sig_held)
     return Baseline(res, bool(res.success), better["chi"], base.nu, base.n_fit, better["held"],
-                    cells, base.spread)
+                    cells, base.spread, base.before)
 
 
 def round_jobs(case, points, sel, others, seed, rnd, top):

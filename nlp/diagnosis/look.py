@@ -52,6 +52,9 @@ class Baseline:
     held: float
     cells: list
     spread: tuple
+    # the baseline with every gain inside the calibration tolerance, when gains beyond it
+    # were freed after it (nlp.diagnosis.gains): the "before" of the report
+    before: Any = None
 
 
 @dataclass

@@ -371,6 +371,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     nonlin_found = bool(nonlin and nonlin["found"])
     improved, z_imp = state["problem"], state["z"]
     k = improved.params.n_z - points.base.params.n_z
+    b0 = base.before or base   # the model with every gain inside the calibration tolerance
     remaining = (bool(found) or bool(inside["findings"])) and not adequate(
         state["chi"], max(base.nu - k, 1), state["held"])
     disc = described(improved, z_imp, case.discrepancy) if case.discrepancy else []
@@ -378,7 +379,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     verdict = classify(found, unconfirmed, sel.indistinct,
                        "outside" if asym else nonlin_found and outside(nonlin["found"]),
                        inside["findings"],
-                       adequate(base.chi, base.nu, base.held), remaining, bool(disc))
+                       adequate(b0.chi, b0.nu, b0.held), remaining, bool(disc))
     # resonances beyond the fitted band do not judge the fit inside it (the verdict above);
     # they are reported as model discrepancy, not as extra modes
     whole = checks.whole
@@ -386,7 +387,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
     disc += beyond
     cells_after, _, _ = residual_map(case, improved, z_imp, points.fit, points.held,
                                      points.sig_fit, points.sig_held)
-    fit_before, fit_after = _fit_summary(base, state, k, nonlin_found, nonlin, found)
+    fit_before, fit_after = _fit_summary(b0, state, k, nonlin_found, nonlin, found)
     findings = [public(r) for r in found] + inside["findings"]
     statements = [f["statement"] for f in findings]
     named = ([nonlin["found"]] if nonlin_found else []) + ([asym] if asym else [])
@@ -423,7 +424,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "mismatch_left": mismatch_left(checks.whole) if remaining else None,
               "evidence_scale": {"phi": sel.phis[0] if sel.phis else 1.0},
               "fit": {"before": fit_before, "after": fit_after},
-              "residual_map": {"before": base.cells, "after": cells_after},
+              "residual_map": {"before": b0.cells, "after": cells_after},
               "whole_band": whole,
               "extra_modes": extra,
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),

@@ -104,3 +104,7 @@ def test_a_gain_beyond_the_tolerance_is_named(tmp_path):
     [f] = res["findings"]
     assert f["physics"] == "sensor_gain" and f["location"] == {"channel": "a2"}
     assert f["parameters"]["gain_a2"] == pytest.approx(0.3, abs=0.01)
+    # "before" is the model with every gain inside the tolerance, which a 30 % gain defeats
+    fit = res["fit"]
+    assert fit["before"]["reduced_chi2"] > 5 * fit["after"]["reduced_chi2"], fit
+    assert fit["after"]["reduced_chi2"] < 1.5
