@@ -148,6 +148,12 @@ def summary(rows):
     if nulls:
         print(f"false alarms on nulls: {_rate(sum(not r['ok'] for r in nulls), len(nulls))}")
     eff = [r for r in rows if r["category"] == "in_catalogue"]
+    det = [r for r in eff if r.get("detectable", True)]
+    if len(det) < len(eff):   # truth.json's detectability (nlp/testing/lab/detectable.py)
+        right = sum(r["ok"] for r in det)
+        print(f"in_catalogue, detectable by the records: right {_rate(right, len(det))}; "
+              f"not detectable: {len(eff) - len(det)} (named anyway: "
+              f"{sum(r['ok'] for r in eff) - right})")
     for fam in sorted({f for r in eff for f in r.get("families", [])}):
         rs = [r for r in eff if fam in r.get("families", [])]
         print(f"  detection, {fam:22s} {_rate(sum(r['ok'] for r in rs), len(rs))}")
@@ -206,6 +212,7 @@ def main():
              "seconds": seconds, "verdict": res["verdict"] if res else None, "label": lab, "ok": ok,
              "extra": extra, "set_up": set_up, "n_found": len((res or {}).get("findings", [])),
              "families": [e["family"] for e in truth.get("effects", [])],
+             "detectable": (truth.get("detectability") or {}).get("detectable", True),
              "development": truth["seed"] // 1000 < 100,
              "found": [f"{f['physics']} {f['location']}" for f in (res or {}).get("findings", [])]}
         with open(log, "a") as fh:

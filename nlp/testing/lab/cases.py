@@ -10,8 +10,10 @@ import yaml
 from nlp.testing.blind.cases import describe_test, real_system
 from nlp.testing.blind.experiment import SIM_FACTOR, drive, write_csv
 from nlp.testing.blind.recipe import case_yaml
-from nlp.testing.blind.structures import FAMILIES, SIZES, real_structure
+from nlp.testing.blind.structures import (DASHPOT_CAP, FAMILIES, SIZE_DETECTABLE, SIZES,
+                                          real_structure)
 from nlp.testing.lab.chain import CALIBRATION, draw_chain, draw_orders
+from nlp.testing.lab.detectable import FISHER_FAMILIES, damper_rule, detectability
 from nlp.testing.lab.experiment import simulate, record
 from nlp.testing.lab.links import (OUTSIDE, OUTSIDE_SIZES, crack, family_nonlinearity, friction,
                                    joints, sliding_mass)
@@ -212,9 +214,29 @@ def make_case(folder, spec, seed, base_channel=True, residual="log_magnitude", p
     y["data"] = {"calibration": CALIBRATION[1], **y["data"]}
     with open(os.path.join(folder, "case.yaml"), "w") as fh:
         yaml.safe_dump(y, fh, sort_keys=False)
+    truth = truth_of(spec, st, test, lab, sysm, effects, where, seed)
+    if spec["category"] == "in_catalogue":
+        truth["detectability"] = detectable_of(effects[0], st, sysm, test, y,
+                                               os.path.join(folder, files[0]))
     with open(os.path.join(folder, "truth.json"), "w") as fh:
-        json.dump(truth_of(spec, st, test, lab, sysm, effects, where, seed), fh, indent=2,
-                  default=lambda x: np.asarray(x).tolist())
+        json.dump(truth, fh, indent=2, default=lambda x: np.asarray(x).tolist())
+
+
+def detectable_of(effect, st, sysm, test, case, records_path):
+    """Whether the records determine the planted effect (detectable.py): the Cramer-Rao
+    rule for the structural families, the size rank for sensor and level effects."""
+    fam = effect["family"]
+    if fam == "local_damper":
+        return damper_rule(effect["size"], DASHPOT_CAP)
+    if fam not in FISHER_FAMILIES:
+        rank = SIZES[fam].index(effect["size"])
+        return {"rule": "size_rank", "rank": rank, "detectable": rank >= SIZE_DETECTABLE}
+    data = np.genfromtxt(records_path, delimiter=",", names=True)
+    records = {k: data[k] for k in data.dtype.names}
+    system = {"out": sysm["out"], "r": sysm["r"], "force_dof": sysm["force_dof"],
+              "base_dof": test.get("base_dof")}
+    return detectability(fam, effect["size"], effect["parameters"], st, sysm["mats"], system,
+                         test, records, case)
 
 
 # ------------------------------------------------------------------ the case list
