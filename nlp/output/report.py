@@ -315,6 +315,26 @@ def _fit_section(fit, noise):
     return parts
 
 
+def _calibration_section(cal):
+    """Every channel's fitted gain inside the case's calibration tolerance (a nuisance of
+    every fit, nlp.diagnosis.calibration); a released one is a finding above."""
+    if not cal:
+        return []
+    lo, hi = cal["bounds"]
+    rows = [[ch, fmt_percent(g), "named above (beyond the tolerance)" if ch in cal["released"]
+             else ("on the tolerance's bound" if min(abs(g - lo), abs(g - hi)) < 1e-3 * hi
+                   else "inside the tolerance")] for ch, g in cal["gains"].items()]
+    ref = (f" The gains are relative to {cal['reference']}'s, which is held at 0: on a force "
+           "test a gain common to every channel is a scale of the whole structure."
+           if cal.get("reference") else "")
+    return ["<h2>Calibration</h2>",
+            f"<p>Every channel's gain was fitted inside the transducers' stated calibration "
+            f"tolerance of +-{100 * cal['tolerance']:.3g} % (a gain relative to the input "
+            f"between {fmt_percent(lo)} and {fmt_percent(hi)}); only a gain the data put "
+            f"beyond it is a finding.{ref}</p>",
+            _table(["channel", "fitted gain", ""], rows, "text")]
+
+
 def _discrepancy_row(x):
     """One model-discrepancy resonance: fitted (with errors) or beyond the fitted band."""
     seen = ", ".join(x["channels"]) or "no channel clearly"
@@ -383,6 +403,7 @@ def _diagnosis_report(out):
                   _table(hdr, _finding_rows(d["alternatives"], refs), "text")]
     parts += _items("Suggested measurements", d.get("suggested_measurements") or [])
     parts += _fit_section(d.get("fit") or {}, d.get("noise"))
+    parts += _calibration_section(d.get("calibration"))
     parts.append("<h2>Residual map</h2><p>Mean squared residual / noise in each channel and "
                  "band, fitted points and held-out shoulders, before and after the added "
                  "physics; 1 (log10: 0) is the noise level, white cells have no held-out "

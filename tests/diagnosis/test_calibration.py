@@ -18,6 +18,7 @@ from nlp.case.load import load_case
 from nlp.diagnosis.calibration import Calibration, calibration_of
 from nlp.diagnosis.driver import diagnose
 from nlp.errors import InputError
+from nlp.output.report import write_report
 from nlp.testing.benchmark import make_case
 
 
@@ -89,6 +90,9 @@ def test_gains_inside_the_tolerance_are_fitted_not_named(tmp_path, family, effec
     fitted = res["calibration"]["gains"]
     for ch, g in zip(("a1", "a2", "a3"), planted):
         assert abs(fitted[ch] - g) < 0.005, (ch, fitted)
+    write_report(str(tmp_path / "out"))
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "<h2>Calibration</h2>" in html and html.count("inside the tolerance") == 3
     if truth is None:
         assert res["verdict"] == "adequate" and res["findings"] == []
         return
