@@ -480,7 +480,7 @@ def checks_stage(cfg, case, points, base, sel, level_bound, log):
         phase = phase_check(case, state, np.union1d(points.fit, points.held), log)
         if phase:
             inside["findings"] += phase["findings"]
-        loss = loss_check(case, state, phase["findings"] if phase else [], log)
+        loss = loss_check(case, state, phase, log)
         if loss:
             inside["findings"] += loss["findings"]
     inside["findings"] = list(case.released_gains) + inside["findings"]

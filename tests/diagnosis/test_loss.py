@@ -74,7 +74,7 @@ def test_loss_found_with_its_value_and_none_in_viscous_damping(tmp_path):
         cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                     {"model": "general", "zeta": 0.01}, channels=4)
         case, state = baseline_fit(cfg)
-        out[eta] = loss_check(case, state, [], lambda s: None)
+        out[eta] = loss_check(case, state, None, lambda s: None)
     found = out[0.03]["findings"]
     assert len(found) == 1 and found[0]["location"] == {}, out[0.03]["rows"]
     v, se = found[0]["parameters"]["eta"], found[0]["uncertainty"]["eta"]
@@ -100,5 +100,5 @@ def test_window_smoothing_of_an_frf_file_is_not_a_loss(tmp_path):
     cfg = write_case_yaml(tmp_path, m, k, [("frf.npz", 2)], {"fixed": {"m1": 5.0}},
                 {"model": "general", "zeta": 0.01}, channels=4)
     case, state = baseline_fit(cfg)
-    out = loss_check(case, state, [], lambda s: None)
+    out = loss_check(case, state, None, lambda s: None)
     assert out["converged"] and out["findings"] == [], out["rows"]
