@@ -19,7 +19,7 @@ SIGNIFICANCE standard errors beyond the tolerance, the test every finding's effe
 meets against its null (:func:`release_check`).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -77,10 +77,6 @@ class Calibration:
         """Channel's FRF (real, imaginary parts) through its calibration."""
         g = 1 + th[self.channels.index(channel)]
         return g * hr, g * hi
-
-    def released_on(self, sensor):
-        """This calibration with sensor's gain freed beyond the tolerance."""
-        return replace(self, released=tuple(dict.fromkeys(self.released + (sensor,))))
 
 
 def calibration_of(case):

@@ -21,7 +21,8 @@ import numpy as np
 from nlp.diagnosis.calibration import calibration_of, gains_at_bound, release_check
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, normalised, quasi_se
 
-__all__ = ["released_gains", "confirmed_gains", "gain_finding", "calibration_summary"]
+__all__ = ["released_gains", "confirmed_gains", "reference_of", "gain_finding",
+           "calibration_summary"]
 
 
 def _fit(case, target, z, points, current=()):
@@ -56,7 +57,7 @@ def released_gains(case, points, z, chi, held, nu, n_fit, log):
         if not trials:
             return found, cur[5]
         _, s, ev, cur = min(trials, key=lambda t: t[0])
-        found.append(gain_finding(s, ev["gain"], ev["se"], ev, cal.tolerance))
+        found.append(gain_finding(s, ev["gain"], ev["se"], ev, cal.tolerance, reference_of(case)))
         log(f"calibration: the gain of {s} is named beyond the tolerance (judged again in "
             "the final model)")
 
@@ -65,36 +66,47 @@ def confirmed_gains(case, points, state, nu, n_fit, log):
     """(case, state): the released gains that still pass release_check in the final model
     (state: its enrichments, z, chi-square, held-out and problem); the others bounded again
     and the final model refitted without them."""
-    for f in list(case.released_gains):
+    kept = list(case.released_gains)
+    for f in list(kept):
         s = f["location"]["channel"]
-        c0 = replace(case, released_gains=tuple(g for g in case.released_gains if g is not f))
+        c0 = replace(case, released_gains=tuple(g for g in kept if g is not f))
         f0 = _fit(c0, points.target, state["z"], points, state["current"])
         pr = state["problem"]
         theta, se = pr.theta(state["z"]), quasi_se(pr, state["z"])[0]
         f1 = (state["chi"], theta, se, list(pr.params.names))
-        ev = release_check(calibration_of(c0), s, f0[:4], f1, n_fit, nu, f0[4], state["held"])
-        if ev["accepted"]:
-            f["parameters"][f"gain_{s}"], f["uncertainty"][f"gain_{s}"] = ev["gain"], ev["se"]
-            f["evidence"].update(delta_bic=ev["delta_bic"], beyond_se=ev["beyond_se"])
+        cal = calibration_of(c0)
+        ev = release_check(cal, s, f0[:4], f1, n_fit, nu, f0[4], state["held"])
+        if ev["accepted"]:   # the final fit's value, error and evidence
+            kept[kept.index(f)] = gain_finding(s, ev["gain"], ev["se"], ev, cal.tolerance,
+                                               reference_of(case))
             continue
         log(f"calibration: the gain of {s} is within the tolerance in the final model "
             f"({100 * ev['gain']:+.1f} +- {100 * ev['se']:.1f} %, dBIC {ev['delta_bic']:.1f} "
             "for freeing it): not named")
-        case = c0
+        kept.remove(f)
         state = {"current": state["current"], "z": f0[5], "chi": f0[0], "held": f0[4],
                  "problem": f0[6]}
-    return case, state
+    return replace(case, released_gains=tuple(kept)), state
 
 
-def gain_finding(sensor, g, se, evidence, tolerance=0.0):
+def reference_of(case):
+    """The channel a force test's gains are relative to (held at 0: the structure's scale
+    carries a gain common to every channel), or None (relative to the input)."""
+    cal = calibration_of(case)
+    first = case.channels[0].sensor_name
+    return None if cal is None or first in cal.channels else first
+
+
+def gain_finding(sensor, g, se, evidence, tolerance=0.0, reference=None):
     """A sensor_gain finding: the channel's gain beyond the stated calibration tolerance."""
     name = f"gain_{sensor}"
+    versus = f"channel {reference}" if reference else "the input"
     return {"physics": "sensor_gain", "location": {"channel": sensor},
             "parameters": {name: float(g)}, "uncertainty": {name: float(se)},
             "evidence": {"source": "calibration", **{k: v for k, v in evidence.items()
                                                      if k in ("delta_bic", "beyond_se", "phi")}},
             "statement": (f"Channel {sensor} reads {100 * abs(g):.1f} +- {100 * se:.1f} % "
-                          f"{'high' if g > 0 else 'low'} relative to the input, beyond the "
+                          f"{'high' if g > 0 else 'low'} relative to {versus}, beyond the "
                           f"+-{100 * tolerance:.0f} % the transducers' calibration allows: "
                           "check this sensor's calibration and its conditioner's gain.")}
 
@@ -107,5 +119,4 @@ def calibration_summary(case, problem, z):
     theta, names = problem.theta(z), list(problem.params.names)
     gains = {s: float(theta[names.index(f"cal_{s}")]) for s in cal.channels}
     return {"tolerance": cal.tolerance, "bounds": list(cal.bounds), "gains": gains,
-            "reference": None if len(cal.channels) == len({ch.sensor_name for ch in case.channels})
-            else case.channels[0].sensor_name, "released": list(cal.released)}
+            "reference": reference_of(case), "released": list(cal.released)}
