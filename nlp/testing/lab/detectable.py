@@ -60,39 +60,40 @@ def _Z(mats, w):
     return K + 1j * Kh - w ** 2 * M + 1j * w * C
 
 
+def _outputs(y, w, kinds, ground):
+    """Channel outputs from the DOF combinations y at w: absolute acceleration per unit
+    input ('acc'; a ground test adds the table's own 1) or displacement ('lvdt')."""
+    return np.array([(1.0 if ground else 0.0) - w ** 2 * y[c] if kd == "acc" else y[c]
+                     for c, kd in enumerate(kinds)])
+
+
+def _load(M, r, ground, force_dof):
+    return -M @ r if ground else np.eye(M.shape[0])[force_dof]
+
+
 def channel_frfs(mats, w, out_rows, kinds, ground, force_dof, r):
     """(n_ch, n_w) FRFs: ground input (table acceleration) -> absolute acceleration
     ('acc') or table-relative displacement ('lvdt'); force input -> acceleration or
     displacement. out_rows (n_ch, n_dof) picks each channel's DOF combination."""
-    M = mats[0]
-    b = -M @ r if ground else np.eye(M.shape[0])[force_dof]
-    H = np.empty((len(kinds), w.size), complex)
-    for k, wk in enumerate(w):
-        x = np.linalg.solve(_Z(mats, wk), b)
-        y = out_rows @ x
-        for c, kind in enumerate(kinds):
-            H[c, k] = (1.0 if ground else 0.0) - wk ** 2 * y[c] if kind == "acc" else y[c]
-    return H
+    b = _load(mats[0], r, ground, force_dof)
+    return np.array([_outputs(out_rows @ np.linalg.solve(_Z(mats, wk), b), wk, kinds, ground)
+                     for wk in w]).T
 
 
 def log_jacobian(mats, dmats, w, out_rows, kinds, ground, force_dof, r):
     """d ln H / d theta, (n_ch, n_w, n_theta): dmats a list of (dM, dC, dK, dKh) per
     parameter (the load -M r of a ground test moves with M)."""
-    M = mats[0]
-    b = -M @ r if ground else np.eye(M.shape[0])[force_dof]
+    b = _load(mats[0], r, ground, force_dof)
     J = np.empty((len(kinds), w.size, len(dmats)), complex)
     for k, wk in enumerate(w):
         Z = _Z(mats, wk)
         x = np.linalg.solve(Z, b)
-        y = out_rows @ x
-        h = np.array([(1.0 if ground else 0.0) - wk ** 2 * y[c] if kd == "acc" else y[c]
-                      for c, kd in enumerate(kinds)])
+        h = _outputs(out_rows @ x, wk, kinds, ground)
         for j, d in enumerate(dmats):
             db = -d[0] @ r if ground else 0.0 * b
             dx = np.linalg.solve(Z, db - _Z(d, wk) @ x)
-            dy = out_rows @ dx
-            dh = np.array([-wk ** 2 * dy[c] if kd == "acc" else dy[c] for c, kd in enumerate(kinds)])
-            J[:, k, j] = dh / h
+            # the table's own 1 does not move: the derivative has no constant term
+            J[:, k, j] = _outputs(out_rows @ dx, wk, kinds, False) / h
     return J
 
 
