@@ -43,7 +43,7 @@ from nlp.diagnosis.discrepancy import (extra_modes_in_band, kept_discrepancy,
 from nlp.diagnosis.evidence import BIC_ACCEPT, BIC_TIE, HELD_OUT_GAIN, evidence, tied
 from nlp.diagnosis.fitting import (best_fit, diagnosis_problem, fit_target, fit_windows,
                                    noise_sigma, residual_map, scatter_best, signed)
-from nlp.diagnosis.gains import confirmed_gains, released_gains
+from nlp.diagnosis.gains import calibration_stage, confirmed_gains
 from nlp.diagnosis.inside import inside_model_class
 from nlp.diagnosis.joint import alone_fits, reciprocity_of_tests
 from nlp.diagnosis.levels import nonlinearity
@@ -55,6 +55,7 @@ from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen_stage
 from nlp.diagnosis.spread import chi2_spread
+from nlp.diagnosis.sweep import carried, sweep_stage
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
 from nlp.diagnosis.widen import (WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak,
                                  refuted_on_wider)
@@ -112,7 +113,12 @@ def first_look(cfg, case, opts, widen, screening, log):
     base = baseline_stage(cfg, case, points, None, log)
     if uses_reduced(case):
         case, points, base = reduced_stage(cfg, case, points, base, log)
-    case, points, base = calibration_stage(cfg, case, points, base, log)
+    def refit(c, p, z):
+        return baseline_stage(cfg, c, p, None, log, starts=[z])
+    case, points, base = sweep_stage(case, points, base, log, refit)
+    case, points, base = calibration_stage(case, points, base, log, refit)
+    if case.released_gains:   # the joints' bend estimated again with the gains named
+        case, points, base = sweep_stage(case, points, base, log, refit)
     advance("diagnose", "levels")
     nonlin = logged_step("levels", fingerprint(cfg.data.level_files),
                          lambda lg: nonlinearity(cfg, lg), log)
@@ -141,7 +147,8 @@ def widened_look(cfg, opts, nonlin, hot, seed, log, first):
     case, whose model discrepancy is kept (its windows too) and reduced basis reused."""
     discrepancy = first.discrepancy
     case = replace(assemble(cfg), discrepancy=tuple(discrepancy), basis_centre=first.basis_centre,
-                   outside_class=first.outside_class, released_gains=first.released_gains)
+                   outside_class=first.outside_class, released_gains=first.released_gains,
+                   **carried(first))
     hot = tuple(dict.fromkeys(tuple(hot) + tuple(m.f0 for m in discrepancy)))
     points = points_stage(cfg, case, WIDEN, hot, log)
     base = baseline_stage(cfg, case, points, seed, log)
@@ -264,22 +271,6 @@ def reduced_stage(cfg, case, points, base, log):
     case = replace(case, basis_centre=centre)  # the last problem's basis is cached: no rebuild
     points = replace(points, base=diagnosis_problem(case, points.target))
     return case, points, baseline_stage(cfg, case, points, None, log, starts=[z])
-
-
-def calibration_stage(cfg, case, points, base, log):
-    """(case, points, baseline) with the gains the data put beyond the case's calibration
-    tolerance freed (nlp.diagnosis.gains); unchanged when the case states none."""
-    if not cfg.data.calibration:
-        return case, points, base
-    found, z = logged_step("calibration", fingerprint(points.fit, base.res.z), lambda lg:
-                           released_gains(case, points, base.res.z, base.chi, base.held,
-                                          base.nu, base.n_fit, lg), log)
-    if not found:
-        return case, points, base
-    case = replace(case, released_gains=tuple(found))
-    points = replace(points, base=diagnosis_problem(case, points.target))
-    return case, points, replace(baseline_stage(cfg, case, points, None, log, starts=[z]),
-                                 before=base)
 
 
 def discrepancy_stage(cfg, case, points, base, widen, log):

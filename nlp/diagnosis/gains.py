@@ -19,10 +19,27 @@ from dataclasses import replace
 import numpy as np
 
 from nlp.diagnosis.calibration import calibration_of, gains_at_bound, release_check
+from nlp.diagnosis.checkpoint import fingerprint, logged_step
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, normalised, quasi_se
 
-__all__ = ["released_gains", "confirmed_gains", "reference_of", "gain_finding",
+__all__ = ["calibration_stage", "released_gains", "confirmed_gains", "reference_of", "gain_finding",
            "calibration_summary"]
+
+
+def calibration_stage(case, points, base, log, refit):
+    """(case, points, baseline) with the gains the data put beyond the case's calibration
+    tolerance freed and the baseline refitted by refit(case, points, z); unchanged when the
+    case states no tolerance or no gain is beyond it."""
+    if not case.config.data.calibration:
+        return case, points, base
+    found, z = logged_step("calibration", fingerprint(points.fit, base.res.z), lambda lg:
+                           released_gains(case, points, base.res.z, base.chi, base.held,
+                                          base.nu, base.n_fit, lg), log)
+    if not found:
+        return case, points, base
+    case = replace(case, released_gains=tuple(found))
+    points = replace(points, base=diagnosis_problem(case, points.target))
+    return case, points, replace(refit(case, points, z), before=base)
 
 
 def _fit(case, target, z, points, current=()):

@@ -429,6 +429,7 @@ def verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound, scr
               "extra_modes": extra,
               "suggested_measurements": suggestions, "noise": describe_noise(case.noise),
               "calibration": calibration_summary(case, sel.state["problem"], sel.state["z"]),
+              "sweep_joints": case.sweep_joints,
               "provenance": provenance(cfg)}
     _optional_parts(result, screening, checks, nonlin, nonlin_found)
     if budget:

@@ -335,6 +335,26 @@ def _calibration_section(cal):
             _table(["channel", "fitted gain", ""], rows, "text")]
 
 
+def _sweep_section(sw):
+    """The joints' distortion of a one-segment record, divided out before the diagnosis
+    (nlp.diagnosis.sweep)."""
+    if not sw:
+        return []
+    rows = [[f"story {s}", fmt_percent(c), f"{k:.3g}"]
+            for s, c, k in zip(sw["stories"], sw["change"], sw["k3"])]
+    before, after = sw.get("reduced_chi2") or (float("nan"), float("nan"))
+    return ["<h2>Joints (one-segment record)</h2>",
+            "<p>A sweep passes each resonance with a response many times its average, and a "
+            "frame's slightly nonlinear joints bend the peaks of its one-segment FRF, which no "
+            "linear model can have. Cubic story springs fitted to that bend are within the "
+            "joints' band of every real frame, so their distortion (at most "
+            f"{100 * sw['largest_ln_change']:.2g} % of |H|) was divided out of the data before "
+            f"the diagnosis: the baseline's reduced chi-square went from {before:.3g} to "
+            f"{after:.3g}. The changes are each story's equivalent stiffness change between "
+            "this test's level and three times it.</p>",
+            _table(["story", "change, level to 3x", "k3 [N/m^3]"], rows, "text")]
+
+
 def _discrepancy_row(x):
     """One model-discrepancy resonance: fitted (with errors) or beyond the fitted band."""
     seen = ", ".join(x["channels"]) or "no channel clearly"
@@ -404,6 +424,7 @@ def _diagnosis_report(out):
     parts += _items("Suggested measurements", d.get("suggested_measurements") or [])
     parts += _fit_section(d.get("fit") or {}, d.get("noise"))
     parts += _calibration_section(d.get("calibration"))
+    parts += _sweep_section(d.get("sweep_joints"))
     parts.append("<h2>Residual map</h2><p>Mean squared residual / noise in each channel and "
                  "band, fitted points and held-out shoulders, before and after the added "
                  "physics; 1 (log10: 0) is the noise level, white cells have no held-out "
