@@ -55,7 +55,7 @@ from nlp.diagnosis.reduction import recentre_baseline, uses_reduced
 from nlp.diagnosis.refit import MAX_REPOLISH, continue_refit, prune, refit_all, repolish
 from nlp.diagnosis.screen import screen_stage
 from nlp.diagnosis.spread import chi2_spread
-from nlp.diagnosis.sweep import carried, sweep_stage
+from nlp.diagnosis.sweep import carried, final_sweep, sweep_stage
 from nlp.diagnosis.verdict import SUGGESTIONS, verdict_stage, write_conclusion
 from nlp.diagnosis.widen import (WIDEN, hot_windows, keeps_findings, leaves_shoulders, off_peak,
                                  refuted_on_wider)
@@ -192,6 +192,10 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
 
 def conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log):
     """Checks of the final model and the verdict of one look."""
+    if sel.found:   # the joints' bend judged again with the findings in
+        def refit(c, p, z):
+            return baseline_stage(cfg, c, p, None, log, starts=[z])
+        case, points, base, sel.state = final_sweep(case, points, base, sel.state, log, refit)
     checks = checks_stage(cfg, case, points, base, sel, level_bound, log)
     advance("diagnose", "verdict")
     return verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound,
