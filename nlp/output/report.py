@@ -340,23 +340,26 @@ def _sweep_section(sw):
     (nlp.diagnosis.sweep)."""
     if not sw:
         return []
-    rows = [[f"story {s}", fmt_percent(c), f"{k:.3g}"]
-            for s, c, k in zip(sw["stories"], sw["change"], sw["k3"])]
+    se = sw.get("k3_se") or [float("nan")] * len(sw["k3"])
+    rows = [[f"story {s}", fmt_percent(c), f"{k:.3g} +- {e:.2g}"]
+            for s, c, k, e in zip(sw["stories"], sw["change"], sw["k3"], se)]
     before, after = sw.get("reduced_chi2") or (float("nan"), float("nan"))
+    when = ("after the findings were in the model (the baseline's misfit was more than the "
+            "bend): the final model's" if sw.get("after_findings") else
+            "before the diagnosis: the baseline's")
     return ["<h2>Joints (one-segment record)</h2>",
             "<p>A sweep passes each resonance with a response many times its average, and a "
             "frame's slightly nonlinear joints bend the peaks of its one-segment FRF, which no "
             "linear model can have. Cubic story springs fitted to that bend are within the "
-            "joints' band of every real frame, so their distortion (at most "
-            f"{100 * sw['largest_ln_change']:.2g} % of |H|) was divided out of the data before "
-            f"the diagnosis: the baseline's reduced chi-square went from {before:.3g} to "
-            f"{after:.3g}. The changes are each story's equivalent stiffness change between "
-            "this test's level and three times it.</p>",
+            "joints' band of every real frame, so their distortion (ln|H| changed by up to "
+            f"{sw['largest_ln_change']:.2g}) was divided out of the data {when} reduced "
+            f"chi-square went from {before:.3g} to {after:.3g}. The changes are each story's "
+            "equivalent stiffness change between this test's level and three times it.</p>",
             *([] if sw.get("confirmed", True) else [
                 "<p>With the findings in the model the bend is no longer proven (estimated "
                 "again from the data as measured): the correction made before them may hold "
                 "part of what they explain, and the joints above are not a finding.</p>"]),
-            _table(["story", "change, level to 3x", "k3 [N/m^3]"], rows, "text")]
+            _table(["story", "change, level to 3x", "k3 [N/m^3] +- SE"], rows, "text")]
 
 
 def _discrepancy_row(x):

@@ -125,3 +125,16 @@ def test_importing_the_package_leaves_the_matplotlib_backend_alone():
             "print(matplotlib.get_backend())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "svg"
+
+
+def test_the_joints_section_says_what_was_divided_out_and_whether_it_held():
+    from nlp.output.report import _sweep_section
+    sw = {"stories": [1, 2], "change": [-0.0081, 0.0074], "k3": [-6.0e4, 1.4e5],
+          "k3_se": [3.0e3, 9.0e3], "largest_ln_change": 0.07, "reduced_chi2": [8.94, 0.9]}
+    html_ = "".join(_sweep_section(sw))
+    assert "-0.81 %" in html_ and "+0.74 %" in html_ and "-6e+04 +- 3e+03" in html_
+    assert "from 8.94 to 0.9" in html_ and "before the diagnosis" in html_
+    assert "no longer proven" not in html_
+    late = "".join(_sweep_section(dict(sw, after_findings=True, confirmed=False)))
+    assert "after the findings" in late and "no longer proven" in late
+    assert _sweep_section(None) == []
