@@ -68,7 +68,7 @@ class Case:
     # decision vector z at which a diagnosis on the reduced backend computes its basis
     # (nlp.diagnosis.reduction; None: the initial model)
     basis_centre: np.ndarray = None
-    # the joints' first-order distortion of a one-segment record, divided out of H by a
+    # the joints' distortion of a one-segment record, divided out of H by a
     # diagnosis (nlp.diagnosis.sweep; None: the data as measured)
     sweep_joints: dict = None
     measured: tuple = None   # (H, target, noise) as measured, where sweep_joints corrected them

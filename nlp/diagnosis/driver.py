@@ -113,8 +113,7 @@ def first_look(cfg, case, opts, widen, screening, log):
     base = baseline_stage(cfg, case, points, None, log)
     if uses_reduced(case):
         case, points, base = reduced_stage(cfg, case, points, base, log)
-    def refit(c, p, z):
-        return baseline_stage(cfg, c, p, None, log, starts=[z])
+    refit = refit_from(cfg, log)
     case, points, base = sweep_stage(case, points, base, log, refit)
     case, points, base = calibration_stage(case, points, base, log, refit)
     if case.released_gains:   # the joints' bend estimated again with the gains named
@@ -193,9 +192,8 @@ def widen_stage(cfg, case, points, base, sel, nonlin, opts, log):
 def conclude(cfg, case, points, base, sel, nonlin, level_bound, screening, log):
     """Checks of the final model and the verdict of one look."""
     if sel.found:   # the joints' bend judged again with the findings in
-        def refit(c, p, z):
-            return baseline_stage(cfg, c, p, None, log, starts=[z])
-        case, points, base, sel.state = final_sweep(case, points, base, sel.state, log, refit)
+        case, points, base, sel.state = final_sweep(case, points, base, sel.state, log,
+                                                    refit_from(cfg, log))
     checks = checks_stage(cfg, case, points, base, sel, level_bound, log)
     advance("diagnose", "verdict")
     return verdict_stage(cfg, case, points, base, sel, checks, nonlin, level_bound,
@@ -262,6 +260,12 @@ def baseline_stage(cfg, case, points, seed, log, starts=None):
         f"points), held-out {held:.2f} on {rh0.size} points")
     log("  " + describe_noise(case.noise)["statement"])
     return Baseline(res, converged, chi, nu, n_fit, held, cells, (sd, n_eff))
+
+
+def refit_from(cfg, log):
+    """refit(case, points, z): the baseline solved from z, for the stages that change the
+    data or the model's nuisances (nlp.diagnosis.sweep, nlp.diagnosis.gains)."""
+    return lambda c, p, z: baseline_stage(cfg, c, p, None, log, starts=[z])
 
 
 def reduced_stage(cfg, case, points, base, log):

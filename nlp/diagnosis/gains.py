@@ -22,8 +22,8 @@ from nlp.diagnosis.calibration import calibration_of, gains_at_bound, release_ch
 from nlp.diagnosis.checkpoint import fingerprint, logged_step
 from nlp.diagnosis.fitting import best_fit, diagnosis_problem, normalised, quasi_se
 
-__all__ = ["calibration_stage", "released_gains", "confirmed_gains", "reference_of", "gain_finding",
-           "calibration_summary"]
+__all__ = ["calibration_stage", "released_gains", "confirmed_gains", "reference_of",
+           "gain_finding", "calibration_summary"]
 
 
 def calibration_stage(case, points, base, log, refit):
